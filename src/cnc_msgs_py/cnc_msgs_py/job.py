@@ -1,0 +1,206 @@
+"""Job documents (schema ``cnc_job/1``): what a cell controller asks the planner to do.
+
+Documents are JSON on the ``job_goal`` topic (YAML files on the command line) in
+machinist units: lengths mm, feeds mm/min (turning feeds mm/rev), speeds rpm, angles deg.
+``parse_job`` validates a whole document and returns it in SI units (m, m/s, rad, rad/s);
+any error names the field path and the reason, before anything can move.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import yaml
+
+from .schema import Bool, Either, JobError, List, Num, Obj, Str
+
+SCHEMA = "cnc_job/1"
+KINDS = ("drill", "turn", "thread", "move", "path")
+AXIS_KEYS = ("x", "y", "z", "a", "b", "c")
+MAX_LIST = 100_000  # holes, moves, outline points: beyond this a job is refused
+
+MM = Num("mm")
+POINT_ZX = List(Num("mm"), length=2)  # [z, radius] on the lathe
+
+VIBRATION = Obj({
+    "D": Num("1", gt=0.0, max=50.0, default=None),
+    "Q": Num("1", gt=0.0, max=20.0),
+    "E": Num("1", gt=0.0, max=50.0, default=None),
+    "R": Num("1", gt=0.0, max=50.0, default=None),
+    "phase_shift": Num("deg", min=-360.0, max=360.0, default=0.0),
+    "D_step": Num("1", min=0.0, max=10.0, default=0.0),
+}, default=None)
+
+DRILL = Obj({
+    "holes": List(List(Num("mm"), length=2), min_len=1, max_len=MAX_LIST),
+    "surface_z": Num("mm", default=0.0),
+    "depth": Num("mm", gt=0.0),
+    "r_gap": Num("mm", gt=0.0, max=50.0, default=2.0),
+    "feed": Num("mm/min", gt=0.0),
+    "overlap": Str(("auto", "off"), default="auto"),
+    "mode": Either((Str(("auto",)), Num("1", min=1, max=3, integer=True)), "auto, 1, 2 or 3", default="auto"),
+    "gentle_air_accel": Bool(default=False),
+}, default=None)
+
+MOVE_TARGET = Obj({k: Num("mm", default=None) for k in AXIS_KEYS})
+MOVE = List(Obj({
+    "rapid": Obj(MOVE_TARGET.fields, default=None),
+    "linear": Obj(MOVE_TARGET.fields, default=None),
+    "feed": Num("mm/min", gt=0.0, default=None),
+    "dwell": Num("1", gt=0.0, max=3600.0, default=None),
+}), min_len=1, max_len=MAX_LIST, default=None)
+
+TURN = Obj({
+    "stock": List(POINT_ZX, min_len=2, max_len=MAX_LIST),
+    "profile": List(POINT_ZX, min_len=2, max_len=MAX_LIST),
+    "depth_of_cut": Num("mm", gt=0.0, max=20.0),
+    "clearance": Num("mm", gt=0.0, max=20.0, default=0.5),
+    "feed": Num("mm/rev", gt=0.0, max=5.0),
+    "origin": POINT_ZX,
+    "finish_allowance": Num("mm", min=0.0, max=5.0, default=0.0),
+    "finishing_pass": Bool(default=False),
+}, default=None)
+
+THREAD = Obj({
+    "start_z": Num("mm"),
+    "end_z": Num("mm"),
+    "major_radius": Num("mm", gt=0.0),
+    "pitch": Num("mm", gt=0.0, max=100.0),
+    "depth": Num("mm", gt=0.0),
+    "passes": Num("1", min=1, max=100, integer=True, default=6),
+    "depths": List(Num("mm", gt=0.0), min_len=1, max_len=100, default=None),
+    "infeed_angle": Num("deg", min=0.0, max=90.0, default=29.5),
+    "spring_passes": Num("1", min=0, max=10, integer=True, default=1),
+    "starts": Num("1", min=1, max=16, integer=True, default=1),
+    "internal": Bool(default=False),
+}, default=None)
+
+PATH = Obj({
+    "points": List(List(Num("mm"), min_len=3, max_len=3), min_len=2, max_len=MAX_LIST),
+    "tool_axis": List(List(Num("1"), length=3), min_len=2, max_len=MAX_LIST, default=None),
+    "feed": Num("mm/min", gt=0.0),
+    "chord_tolerance": Num("mm", gt=0.0, default=0.01),
+}, default=None)
+
+JOB = Obj({
+    "schema": Str((SCHEMA,)),
+    "job_id": Str(pattern=r"[A-Za-z0-9_.:-]{1,64}"),
+    "kind": Str(KINDS),
+    "machine": Str(pattern=r"[A-Za-z0-9_.-]{1,64}"),
+    "tool": Obj({
+        "length": Num("mm", min=0.0, max=1000.0, default=0.0),
+        "diameter": Num("mm", gt=0.0, max=500.0, default=None),
+        "nose_radius": Num("mm", min=0.0, max=10.0, default=0.0),
+    }, default={}),
+    "setup": Obj({
+        "origin": List(Num("mm"), length=3, default=[0.0, 0.0, 0.0]),
+        "rotation_deg": List(Num("deg"), length=3, default=[0.0, 0.0, 0.0]),
+    }, default={}),
+    "spindle_rpm": Num("rpm", min=0.0, max=100_000.0, default=0.0),
+    "drill": DRILL,
+    "move": MOVE,
+    "turn": TURN,
+    "thread": THREAD,
+    "path": PATH,
+    "vibration": VIBRATION,
+})
+
+# Fields each kind needs besides its own block.
+NEEDS_SPINDLE = ("drill", "turn", "thread")
+
+
+def _check_kind(job: SimpleNamespace) -> None:
+    """Cross-field rules that a field-by-field check cannot see."""
+    kind = job.kind
+    if getattr(job, kind) is None:
+        raise JobError(kind, f"required for kind '{kind}'")
+    for other in KINDS:
+        if other != kind and getattr(job, other) is not None:
+            raise JobError(other, f"not allowed in a '{kind}' job")
+    if kind in NEEDS_SPINDLE and job.spindle_rpm <= 0.0:
+        raise JobError("spindle_rpm", f"must be > 0 for a {kind} job")
+    if kind == "move":
+        for i, move in enumerate(job.move):
+            given = [k for k in ("rapid", "linear", "dwell") if getattr(move, k) is not None]
+            if len(given) != 1:
+                raise JobError(f"move[{i}]", "needs exactly one of rapid, linear, dwell")
+            if move.linear is not None and move.feed is None:
+                raise JobError(f"move[{i}].feed", "required for a linear move")
+            if move.linear is None and move.feed is not None:
+                raise JobError(f"move[{i}].feed", "only a linear move takes a feed")
+            if given[0] != "dwell" and not any(v is not None for v in vars(getattr(move, given[0])).values()):
+                raise JobError(f"move[{i}].{given[0]}", "names no axis")
+    vib = job.vibration
+    if vib is not None:
+        if vib.D is None and (vib.E is None or vib.R is None):
+            raise JobError("vibration", "give D, or E and R (for D < 1)")
+        if vib.D is not None and (vib.E is not None or vib.R is not None):
+            raise JobError("vibration", "give either D or E and R, not both")
+        if vib.E is not None and vib.R is not None and vib.R >= vib.E:
+            raise JobError("vibration.R", "revolutions in retreat must be fewer than E")
+        if kind == "move" and job.spindle_rpm <= 0.0:
+            raise JobError("spindle_rpm", "must be > 0 when a vibration is given")
+    if kind == "thread":
+        t = job.thread
+        if t.depths is not None:
+            if any(b <= a for a, b in zip(t.depths, t.depths[1:])):
+                raise JobError("thread.depths", "cumulative depths must increase")
+            if abs(t.depths[-1] - t.depth) > 1e-9:
+                raise JobError("thread.depths", "the last depth must equal thread.depth")
+        if not t.internal and t.depth >= t.major_radius:
+            raise JobError("thread.depth", "must be smaller than major_radius")
+        if t.end_z >= t.start_z:
+            raise JobError("thread.end_z", "must lie left of start_z (smaller z)")
+    if kind == "path" and job.path.tool_axis is not None and len(job.path.tool_axis) != len(job.path.points):
+        raise JobError("path.tool_axis", "needs one vector per point")
+
+
+def parse_job(doc: Any) -> SimpleNamespace:
+    """Validate a whole job document and return it in SI units.
+
+    Args:
+        doc: the decoded document (a dict), as from JSON or YAML.
+
+    Raises:
+        JobError: names the first offending field and the reason.
+    """
+    job = JOB.check(doc, "")
+    _check_kind(job)
+    return job
+
+
+def decode_job(text: str) -> Any:
+    """Decode a job_goal message (JSON); a decode error is a JobError too."""
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as err:
+        raise JobError("", f"not valid JSON ({err.msg} at line {err.lineno} column {err.colno})") from err
+
+
+def load_job_file(path: str | Path) -> dict:
+    """Read a job document from a YAML or JSON file, as the CLI accepts them.
+
+    Raises:
+        JobError: the file is missing or not a YAML/JSON mapping.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as err:
+        raise JobError("", f"cannot read job file {path}: {err.strerror}") from err
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        raise JobError("", f"job file {path} is not valid YAML/JSON ({err})") from err
+    if not isinstance(doc, dict):
+        raise JobError("", f"job file {path} must hold a mapping")
+    return doc
+
+
+def job_id_of(doc: Any) -> str:
+    """The job_id of a document even if it is invalid, for status messages."""
+    if isinstance(doc, dict) and isinstance(doc.get("job_id"), str):
+        return doc["job_id"][:64]
+    return ""

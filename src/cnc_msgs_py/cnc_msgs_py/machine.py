@@ -1,0 +1,196 @@
+"""Machine descriptions: axes, limits, kinematic layout and servo drive models.
+
+One YAML file per machine in ``config/machines/`` (SI units) feeds both the planner
+and the servo bridge, so no limit or joint name is written twice.
+"""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import yaml
+
+LAYOUTS = ("mill3", "lathe")
+AXIS_TYPES = ("linear", "rotary", "continuous")
+SPINDLE = "spindle"
+# Joint names on the topics, in this order whenever a machine has them.
+JOINT_ORDER = ("x", "y", "z", "a", "b", "c", SPINDLE)
+
+
+class MachineError(ValueError):
+    """A machine description is missing or malformed."""
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One joint: its travel (None for continuous joints) and its kinematic limits."""
+
+    name: str
+    type: str
+    min: float | None
+    max: float | None
+    max_velocity: float
+    max_acceleration: float
+    max_jerk: float
+
+    def within_travel(self, position: float, tolerance: float = 0.0) -> bool:
+        """Whether a position lies inside the soft limits."""
+        if self.min is None or self.max is None:
+            return True
+        return self.min - tolerance <= position <= self.max + tolerance
+
+
+@dataclass(frozen=True)
+class Drive:
+    """Servo drive model of one axis, as the bridge runs it and the planner compensates it."""
+
+    kp: float
+    velocity_ff: float
+    accel_ff: float
+    velocity_lag: float
+    resolution: float
+    following_error_limit: float
+
+
+@dataclass(frozen=True)
+class Machine:
+    """A machine: ordered axes (joint names on the topics) and one drive per axis."""
+
+    name: str
+    layout: str
+    axes: dict[str, Axis]
+    drives: dict[str, Drive]
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return tuple(self.axes)
+
+    @property
+    def linear_axes(self) -> tuple[str, ...]:
+        return tuple(n for n, a in self.axes.items() if a.type == "linear")
+
+    def axis(self, name: str) -> Axis:
+        try:
+            return self.axes[name]
+        except KeyError as err:
+            raise MachineError(f"machine '{self.name}' has no axis '{name}'") from err
+
+
+def machine_dirs() -> list[Path]:
+    """Where machine descriptions are looked up, first match wins.
+
+    ``CNC_MACHINE_PATH`` (os.pathsep separated) first, then the source tree's
+    ``config/machines`` (a checkout or ``pip install -e``), then the ament share
+    directory of an installed workspace.
+    """
+    dirs = [Path(p) for p in os.environ.get("CNC_MACHINE_PATH", "").split(os.pathsep) if p]
+    for parent in Path(__file__).resolve().parents:
+        candidate = parent / "config" / "machines"
+        if candidate.is_dir():
+            dirs.append(candidate)
+            break
+    prefix = Path(__file__).resolve()
+    for parent in prefix.parents:
+        share = parent / "share" / "cnc_msgs_py" / "config" / "machines"
+        if share.is_dir():
+            dirs.append(share)
+            break
+    return dirs
+
+
+def _number(value: object, where: str, positive: bool = True) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise MachineError(f"{where}: expected a finite number, got {value!r}")
+    if positive and value <= 0:
+        raise MachineError(f"{where}: must be > 0, got {value!r}")
+    return float(value)
+
+
+def _parse_axis(name: str, spec: object, where: str) -> Axis:
+    if not isinstance(spec, dict):
+        raise MachineError(f"{where}: expected a mapping")
+    kind = spec.get("type")
+    if kind not in AXIS_TYPES:
+        raise MachineError(f"{where}.type: expected one of {AXIS_TYPES}, got {kind!r}")
+    lo = hi = None
+    if kind != "continuous":
+        lo = _number(spec.get("min"), f"{where}.min", positive=False)
+        hi = _number(spec.get("max"), f"{where}.max", positive=False)
+        if lo >= hi:
+            raise MachineError(f"{where}: min {lo} must be below max {hi}")
+    return Axis(
+        name=name,
+        type=kind,
+        min=lo,
+        max=hi,
+        max_velocity=_number(spec.get("max_velocity"), f"{where}.max_velocity"),
+        max_acceleration=_number(spec.get("max_acceleration"), f"{where}.max_acceleration"),
+        max_jerk=_number(spec.get("max_jerk"), f"{where}.max_jerk"),
+    )
+
+
+def _parse_drive(spec: object, where: str) -> Drive:
+    if not isinstance(spec, dict):
+        raise MachineError(f"{where}: expected a mapping")
+    return Drive(
+        kp=_number(spec.get("kp"), f"{where}.kp"),
+        velocity_ff=_number(spec.get("velocity_ff"), f"{where}.velocity_ff", positive=False),
+        accel_ff=_number(spec.get("accel_ff"), f"{where}.accel_ff", positive=False),
+        velocity_lag=_number(spec.get("velocity_lag"), f"{where}.velocity_lag"),
+        resolution=_number(spec.get("resolution"), f"{where}.resolution"),
+        following_error_limit=_number(
+            spec.get("following_error_limit"), f"{where}.following_error_limit"
+        ),
+    )
+
+
+def parse_machine(doc: object, source: str = "machine") -> Machine:
+    """Build a Machine from a parsed YAML document; errors name the offending field."""
+    if not isinstance(doc, dict):
+        raise MachineError(f"{source}: expected a mapping at the top level")
+    layout = doc.get("layout")
+    if layout not in LAYOUTS:
+        raise MachineError(f"{source}: layout: expected one of {LAYOUTS}, got {layout!r}")
+    axes_spec = doc.get("axes")
+    drive_spec = doc.get("drive")
+    if not isinstance(axes_spec, dict) or not axes_spec:
+        raise MachineError(f"{source}: axes: expected a non-empty mapping")
+    if not isinstance(drive_spec, dict):
+        raise MachineError(f"{source}: drive: expected a mapping")
+    unknown = [n for n in axes_spec if n not in JOINT_ORDER]
+    if unknown:
+        raise MachineError(f"{source}: axes.{unknown[0]}: joint names are {JOINT_ORDER}")
+    names = [n for n in JOINT_ORDER if n in axes_spec]
+    axes = {n: _parse_axis(n, axes_spec[n], f"{source}: axes.{n}") for n in names}
+    missing = [n for n in names if n not in drive_spec]
+    if missing:
+        raise MachineError(f"{source}: drive.{missing[0]}: every axis needs a drive model")
+    drives = {n: _parse_drive(drive_spec[n], f"{source}: drive.{n}") for n in names}
+    return Machine(name=str(doc.get("name", source)), layout=layout, axes=axes, drives=drives)
+
+
+def load_machine(name_or_path: str) -> Machine:
+    """Load a machine by name (looked up in machine_dirs()) or by path to a YAML file.
+
+    Raises:
+        MachineError: the file is missing or malformed.
+    """
+    path = Path(name_or_path)
+    if path.suffix not in (".yaml", ".yml"):
+        found = [d / f"{name_or_path}.yaml" for d in machine_dirs()]
+        found = [p for p in found if p.is_file()]
+        if not found:
+            raise MachineError(
+                f"machine '{name_or_path}': no {name_or_path}.yaml in "
+                f"{[str(d) for d in machine_dirs()]} (set CNC_MACHINE_PATH)"
+            )
+        path = found[0]
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except OSError as err:
+        raise MachineError(f"machine file {path}: {err.strerror}") from err
+    except yaml.YAMLError as err:
+        raise MachineError(f"machine file {path}: not valid YAML ({err})") from err
+    return parse_machine(doc, source=path.stem)

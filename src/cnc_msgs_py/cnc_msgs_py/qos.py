@@ -1,0 +1,27 @@
+"""QoS profiles of the CNC topics (needs rclpy; the rest of the package does not)."""
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from . import topics
+
+
+def _reliable(depth: int, latched: bool = False) -> QoSProfile:
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=depth,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
+    )
+
+
+JOB_GOAL = _reliable(10)
+JOB_CANCEL = _reliable(10)
+JOB_STATUS = _reliable(10, latched=True)
+JOB_EVENTS = _reliable(100)
+JOINT_TRAJECTORY = _reliable(topics.TRAJECTORY_DEPTH)
+# Feedback: a deep history so that a recorder falling behind during fast simulation
+# catches up from the queue instead of losing samples.
+JOINT_STATES = _reliable(topics.FEEDBACK_DEPTH)
+# Readers that only need the latest state (the planner's clock and position).
+LATEST = _reliable(1)
+DIAGNOSTICS = _reliable(10)
+CLOCK = _reliable(topics.FEEDBACK_DEPTH)

@@ -1,0 +1,160 @@
+"""A small declarative validator: field specs that check, default and convert to SI.
+
+Each spec validates one value at a field path and returns it converted to SI units, so
+a validated job needs no further unit handling. Errors are JobError("path: reason").
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from types import SimpleNamespace
+from typing import Any
+
+from .units import CONVERTERS
+
+REQUIRED = object()
+
+
+class JobError(ValueError):
+    """A job document is invalid; ``field`` is the path of the offending field."""
+
+    def __init__(self, field: str, reason: str) -> None:
+        super().__init__(f"{field}: {reason}" if field else reason)
+        self.field = field
+        self.reason = reason
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+@dataclass(frozen=True)
+class Num:
+    """A finite number in a declared unit, with optional bounds (in that unit)."""
+
+    unit: str = "1"
+    default: Any = REQUIRED
+    min: float | None = None
+    max: float | None = None
+    gt: float | None = None
+    integer: bool = False
+
+    def check(self, value: Any, path: str) -> Any:
+        unit = "" if self.unit == "1" else f" {self.unit}"
+        if not _is_number(value):
+            raise JobError(path, f"expected a number{f' ({self.unit})' if unit else ''}, got {value!r}")
+        if not math.isfinite(value):
+            raise JobError(path, f"must be finite, got {value}")
+        if self.integer and value != int(value):
+            raise JobError(path, f"expected a whole number, got {value}")
+        if self.gt is not None and not value > self.gt:
+            raise JobError(path, f"must be > {self.gt:g}{unit}, got {value:g}")
+        if self.min is not None and value < self.min:
+            raise JobError(path, f"must be >= {self.min:g}{unit}, got {value:g}")
+        if self.max is not None and value > self.max:
+            raise JobError(path, f"must be <= {self.max:g}{unit}, got {value:g}")
+        return int(value) if self.integer else CONVERTERS[self.unit](float(value))
+
+
+@dataclass(frozen=True)
+class Str:
+    """A string, optionally one of fixed choices or matching a pattern."""
+
+    choices: tuple[str, ...] | None = None
+    pattern: str | None = None
+    default: Any = REQUIRED
+
+    def check(self, value: Any, path: str) -> Any:
+        if not isinstance(value, str):
+            raise JobError(path, f"expected a string, got {value!r}")
+        if self.choices is not None and value not in self.choices:
+            raise JobError(path, f"expected one of {', '.join(self.choices)}; got {value!r}")
+        if self.pattern is not None and not re.fullmatch(self.pattern, value):
+            raise JobError(path, f"{value!r} does not match {self.pattern}")
+        return value
+
+
+@dataclass(frozen=True)
+class Bool:
+    default: Any = REQUIRED
+
+    def check(self, value: Any, path: str) -> Any:
+        if not isinstance(value, bool):
+            raise JobError(path, f"expected true or false, got {value!r}")
+        return value
+
+
+@dataclass(frozen=True)
+class Either:
+    """One of several specs, tried in order (e.g. ``auto`` or a mode number)."""
+
+    options: tuple[Any, ...]
+    expected: str
+    default: Any = REQUIRED
+
+    def check(self, value: Any, path: str) -> Any:
+        for option in self.options:
+            try:
+                return option.check(value, path)
+            except JobError:
+                continue
+        raise JobError(path, f"expected {self.expected}, got {value!r}")
+
+
+@dataclass(frozen=True)
+class List:
+    """A list of items with bounded length; ``length`` fixes it (points, vectors)."""
+
+    item: Any
+    min_len: int = 0
+    max_len: int = 100_000
+    length: int | None = None
+    default: Any = REQUIRED
+
+    def check(self, value: Any, path: str) -> Any:
+        if not isinstance(value, (list, tuple)):
+            raise JobError(path, f"expected a list, got {value!r}")
+        if self.length is not None and len(value) != self.length:
+            raise JobError(path, f"expected {self.length} values, got {len(value)}")
+        if len(value) < self.min_len:
+            raise JobError(path, f"needs at least {self.min_len} entries, got {len(value)}")
+        if len(value) > self.max_len:
+            raise JobError(path, f"has {len(value)} entries, more than the maximum {self.max_len}")
+        return [self.item.check(v, f"{path}[{i}]") for i, v in enumerate(value)]
+
+
+@dataclass(frozen=True)
+class Obj:
+    """A mapping with known keys; unknown keys are an error, not ignored."""
+
+    fields: dict[str, Any]
+    default: Any = REQUIRED
+
+    def check(self, value: Any, path: str) -> Any:
+        if not isinstance(value, dict):
+            raise JobError(path, f"expected a mapping, got {value!r}")
+        for key in value:
+            if key not in self.fields:
+                raise JobError(_join(path, str(key)), f"unknown key (known: {', '.join(self.fields)})")
+        out = {}
+        for key, spec in self.fields.items():
+            where = _join(path, key)
+            if key in value and value[key] is not None:
+                out[key] = spec.check(value[key], where)
+            elif spec.default is REQUIRED:
+                raise JobError(where, "required")
+            else:
+                out[key] = _default(spec)
+        return SimpleNamespace(**out)
+
+
+def _default(spec: Any) -> Any:
+    """Defaults are written in the spec's own unit, so they convert like input."""
+    if spec.default is None:
+        return None
+    return spec.check(spec.default, "default")
+
+
+def _join(path: str, key: str) -> str:
+    return f"{path}.{key}" if path else key

@@ -1,0 +1,48 @@
+"""Status documents (``cnc_status/1``) on job_status, and cancel requests on job_cancel."""
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field
+
+STATUS_SCHEMA = "cnc_status/1"
+STATES = ("accepted", "rejected", "running", "succeeded", "aborted", "canceled")
+FINAL_STATES = ("rejected", "succeeded", "aborted", "canceled")
+
+
+@dataclass
+class Status:
+    """One job's state. ``progress`` is 0..1 of plan time; ``cycle_time_s`` once final."""
+
+    job_id: str
+    state: str
+    reason: str = ""
+    progress: float = 0.0
+    phase: str = ""
+    elapsed_s: float = 0.0
+    duration_s: float = 0.0
+    cycle_time_s: float | None = None
+    detail: dict = field(default_factory=dict)
+    schema: str = STATUS_SCHEMA
+
+    @property
+    def final(self) -> bool:
+        return self.state in FINAL_STATES
+
+    def encode(self) -> str:
+        return json.dumps(asdict(self))
+
+    @classmethod
+    def decode(cls, text: str) -> "Status":
+        doc = json.loads(text)
+        if doc.get("schema") != STATUS_SCHEMA or doc.get("state") not in STATES:
+            raise ValueError(f"not a {STATUS_SCHEMA} document: {text[:80]}")
+        return cls(**doc)
+
+
+def encode_cancel(job_id: str) -> str:
+    """job_cancel carries the bare job_id."""
+    return job_id
+
+
+def decode_cancel(text: str) -> str:
+    return text.strip()

@@ -1,0 +1,15 @@
+"""Topic names (relative, so they live under the node's namespace, default ``/cnc``)."""
+
+NAMESPACE = "/cnc"
+JOB_GOAL = "job_goal"
+JOB_CANCEL = "job_cancel"
+JOB_STATUS = "job_status"
+JOB_EVENTS = "job_events"
+JOINT_TRAJECTORY = "joint_trajectory"
+JOINT_STATES = "joint_states"
+DIAGNOSTICS = "/diagnostics"
+CLOCK = "/clock"
+
+# Depths: a chunk is ~0.1 s of setpoints; keep a few seconds of them queued.
+TRAJECTORY_DEPTH = 100
+FEEDBACK_DEPTH = 20000  # 20 s of 1 kHz joint_states

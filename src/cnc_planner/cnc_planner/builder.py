@@ -1,0 +1,96 @@
+"""Build a Plan move by move, in axis coordinates (SI), within one machine's limits."""
+from __future__ import annotations
+
+import numpy as np
+
+from cnc_msgs_py.machine import SPINDLE, Machine
+
+from .motion import LinearMove, RuckigMove, axis_limits, point_to_point, velocity_change
+from .timeline import Event, JointTimeline, Piece, Plan
+
+
+class PlanBuilder:
+    """Appends jerk-limited moves to per-joint timelines and records phase events.
+
+    Moves start, by default, when every joint they involve has finished its previous
+    piece; pass ``start`` to overlap a move with motion of other joints.
+    """
+
+    def __init__(self, machine: Machine, start_position: dict[str, float] | None = None):
+        self.machine = machine
+        start_position = start_position or {}
+        self.timelines = {j: JointTimeline(start_position.get(j, 0.0)) for j in machine.joint_names}
+        self.events: list[Event] = []
+        self.spindle_ready = 0.0  # feed moves wait until the spindle is at speed
+
+    def position(self, joint: str) -> float:
+        return self.timelines[joint].end_position
+
+    def end_time(self, joints: list[str] | tuple[str, ...] | None = None) -> float:
+        joints = joints or [j for j in self.machine.joint_names if j != SPINDLE]
+        return max(self.timelines[j].end_time for j in joints)
+
+    def event(self, time: float, name: str, **data: object) -> None:
+        self.events.append(Event(time, name, data))
+
+    def _add(self, joints: list[str], start: float, move, ends: list[float], velocities=None) -> float:
+        for dof, joint in enumerate(joints):
+            velocity = 0.0 if velocities is None else velocities[dof]
+            self.timelines[joint].add(Piece(start, move.duration, move.sampler(dof)), ends[dof], velocity)
+        return start + move.duration
+
+    def rapid(self, target: dict[str, float], start: float | None = None) -> float:
+        """Time-optimal positioning of the named axes (rest to rest); returns the end time."""
+        joints = [j for j in target if abs(target[j] - self.position(j)) > 1e-12]
+        if not joints:
+            return self.end_time(list(target)) if start is None else start
+        begin = self.end_time(joints) if start is None else start
+        move = point_to_point(
+            [self.position(j) for j in joints],
+            [target[j] for j in joints],
+            [axis_limits(self.machine.axes[j]) for j in joints],
+        )
+        return self._add(joints, begin, move, [target[j] for j in joints])
+
+    def rapid_move(self, target: dict[str, float]) -> RuckigMove | None:
+        """The ruckig move a rapid to ``target`` would take (for timing decisions)."""
+        joints = [j for j in target if abs(target[j] - self.position(j)) > 1e-12]
+        if not joints:
+            return None
+        return point_to_point(
+            [self.position(j) for j in joints],
+            [target[j] for j in joints],
+            [axis_limits(self.machine.axes[j]) for j in joints],
+        )
+
+    def linear(self, target: dict[str, float], feed: float, start: float | None = None) -> float:
+        """Straight move at ``feed`` (m/s along the path); returns the end time."""
+        joints = list(target)
+        p0 = np.array([self.position(j) for j in joints])
+        p1 = np.array([target[j] for j in joints])
+        if np.linalg.norm(p1 - p0) <= 1e-12:
+            return self.end_time(joints) if start is None else start
+        begin = max(self.end_time(joints), self.spindle_ready) if start is None else start
+        move = LinearMove(p0, p1, [axis_limits(self.machine.axes[j]) for j in joints], feed)
+        return self._add(joints, begin, move, list(p1))
+
+    def spindle(self, speed: float, start: float | None = None) -> float:
+        """Ramp the spindle to ``speed`` (rad/s, signed); returns when it is reached."""
+        timeline = self.timelines[SPINDLE]
+        begin = timeline.end_time if start is None else start
+        if abs(timeline.end_velocity - speed) < 1e-12:
+            return begin
+        p0 = timeline.position_at(begin)
+        move = velocity_change([p0], [timeline.end_velocity], [0.0], [speed],
+                               [axis_limits(self.machine.axes[SPINDLE])])
+        end_position = float(move.trajectory.at_time(move.duration)[0][0])
+        timeline.add(Piece(begin, move.duration, move.sampler(0)), end_position, speed)
+        self.spindle_ready = begin + move.duration
+        return self.spindle_ready
+
+    def build(self) -> Plan:
+        """The finished plan; the spindle is stopped at the end if still turning."""
+        if SPINDLE in self.timelines and abs(self.timelines[SPINDLE].end_velocity) > 0.0:
+            self.spindle(0.0, start=max(self.end_time(), self.timelines[SPINDLE].end_time))
+        self.events.sort(key=lambda e: e.time)
+        return Plan(self.machine.joint_names, self.timelines, self.events)

@@ -1,0 +1,134 @@
+"""Command-line tools: cnc-run (a job through both nodes), cnc-plan (offline), cnc-analyze.
+
+Every user-facing failure is one line naming what to fix, with a non-zero exit code.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from cnc_msgs_py.job import job_id_of, load_job_file, parse_job
+from cnc_msgs_py.machine import MachineError, load_machine
+from cnc_msgs_py.schema import JobError
+
+from .jobs import plan_job
+
+
+def _fail(tool: str, message: str, code: int = 2) -> int:
+    print(f"{tool}: {message}", file=sys.stderr)
+    return code
+
+
+def _write_json(path: Path, doc: dict) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(doc, indent=2, sort_keys=False) + "\n")
+
+
+def _rejected_report(job_id: str, reason: str) -> dict:
+    return {"job_id": job_id, "state": "rejected", "reason": reason, "cycle_time_s": 0.0,
+            "max_following_error": {}, "setpoints": 0, "chunks": 0, "chunks_lost": 0}
+
+
+def _show(status: dict) -> None:
+    state = status["state"]
+    if state == "running":
+        print(f"  {status['job_id']}: {100 * status['progress']:5.1f}%  {status['elapsed_s']:7.2f} / "
+              f"{status['duration_s']:.2f} s  {status.get('phase', '')}", flush=True)
+    else:
+        reason = f" ({status['reason']})" if status.get("reason") else ""
+        print(f"  {status['job_id']}: {state}{reason}", flush=True)
+
+
+def run_main(argv: list[str] | None = None) -> int:
+    """cnc-run JOB [--out DIR]: run a job on the emulated machine and report on it."""
+    parser = argparse.ArgumentParser(prog="cnc-run", description=run_main.__doc__)
+    parser.add_argument("job", help="job document (YAML or JSON)")
+    parser.add_argument("--out", type=Path, help="output directory (default runs/<timestamp>)")
+    parser.add_argument("--timeout", type=float, default=900.0, help="wall-clock limit (s)")
+    args = parser.parse_args(argv)
+    out = args.out or Path("runs") / time.strftime("%Y%m%d-%H%M%S")
+    if (out / "bag").exists():
+        return _fail("cnc-run", f"--out: {out / 'bag'} exists already; choose a new directory")
+    try:
+        doc = load_job_file(args.job)
+        machine = load_machine(doc.get("machine") if isinstance(doc.get("machine"), str) else "")
+    except (JobError, MachineError) as err:
+        reason = f"machine: {err}" if isinstance(err, MachineError) else str(err)
+        _write_json(out / "report.json", _rejected_report(job_id_of(locals().get("doc")), reason))
+        return _fail("cnc-run", f"rejected: {reason}")
+    from .report import build_report  # rclpy-free, but only needed past this point
+    from .runner import RunError, run_job
+    from cnc_servo_bridge.recording import read_run
+
+    print(f"cnc-run: {args.job} on '{machine.name}' -> {out}", flush=True)
+    try:
+        status = run_job(json.dumps(doc), job_id_of(doc), machine.name, out / "bag",
+                         timeout=args.timeout, progress=_show)
+    except RunError as err:
+        return _fail("cnc-run", str(err), 3)
+    report = build_report(read_run(out / "bag"))
+    _write_json(out / "report.json", report)
+    print(summary(report))
+    return 0 if status["state"] == "succeeded" else 1
+
+
+def summary(report: dict) -> str:
+    lines = [f"job {report['job_id']}: {report['state']}" + (f" ({report['reason']})" if report.get("reason") else "")]
+    if report["state"] != "rejected":
+        fe = ", ".join(f"{k} {v * 1e3:.4f}" for k, v in report["max_following_error"].items())
+        lines += [f"  cycle time on feedback  {report['cycle_time_s']:.3f} s",
+                  f"  max following error     {fe} (mm / mrad)",
+                  f"  setpoints {report['setpoints']} in {report['chunks']} chunks, {report['chunks_lost']} lost"]
+    return "\n".join(lines)
+
+
+def plan_main(argv: list[str] | None = None) -> int:
+    """cnc-plan JOB --out DIR: plan offline (no ROS) and write setpoints.npz + summary.json."""
+    parser = argparse.ArgumentParser(prog="cnc-plan", description=plan_main.__doc__)
+    parser.add_argument("job")
+    parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--period", type=float, default=0.001, help="interpolation period (s)")
+    args = parser.parse_args(argv)
+    try:
+        job = parse_job(load_job_file(args.job))
+        machine = load_machine(job.machine)
+        plan = plan_job(job, machine)
+    except (JobError, MachineError) as err:
+        return _fail("cnc-plan", str(err))
+    t = np.arange(int(np.ceil(plan.duration / args.period)) + 1) * args.period
+    p, v, a = plan.sample(t)
+    args.out.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(args.out / "setpoints.npz", t=t, **{j: p[:, i] for i, j in enumerate(plan.joints)},
+                        **{f"{j}_velocity": v[:, i] for i, j in enumerate(plan.joints)},
+                        **{f"{j}_acceleration": a[:, i] for i, j in enumerate(plan.joints)})
+    _write_json(args.out / "summary.json", {
+        "job_id": job.job_id, "machine": machine.name, "duration_s": plan.duration, "setpoints": len(t),
+        "joints": list(plan.joints), "events": [{"t": e.time, "name": e.name, **e.data} for e in plan.events],
+    })
+    print(f"cnc-plan: {job.job_id}: {plan.duration:.3f} s, {len(t)} setpoints -> {args.out}")
+    return 0
+
+
+def analyze_main(argv: list[str] | None = None) -> int:
+    """cnc-analyze DIR/bag [--out report.json]: recompute the report from a recording alone."""
+    parser = argparse.ArgumentParser(prog="cnc-analyze", description=analyze_main.__doc__)
+    parser.add_argument("bag", type=Path)
+    parser.add_argument("--out", type=Path, help="write the report here (default: print it)")
+    args = parser.parse_args(argv)
+    from cnc_servo_bridge.recording import read_run
+
+    from .report import build_report
+    try:
+        report = build_report(read_run(args.bag))
+    except (FileNotFoundError, ValueError) as err:
+        return _fail("cnc-analyze", str(err))
+    if args.out:
+        _write_json(args.out, report)
+    else:
+        print(json.dumps(report, indent=2))
+    return 0

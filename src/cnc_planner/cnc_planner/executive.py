@@ -1,0 +1,189 @@
+"""The planner's executive: job queue, one job streaming at a time, cancel and faults.
+
+ROS-free: the node feeds it documents, cancel requests, feedback and the time, and
+publishes what it returns (statuses, events, setpoint chunks). Jobs are validated and
+planned whole when they arrive, so a bad job is rejected before anything moves.
+"""
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+from types import SimpleNamespace
+
+import numpy as np
+
+from cnc_msgs_py.job import decode_job, job_id_of, parse_job
+from cnc_msgs_py.machine import Machine
+from cnc_msgs_py.schema import JobError
+from cnc_msgs_py.status import Status
+
+from .jobs import plan_job
+from .streaming import NS, Chunk, SetpointStream
+from .timeline import Event, Plan
+
+
+@dataclass
+class Settings:
+    period_ns: int = 1_000_000  # interpolation period
+    chunk_points: int = 100
+    lookahead_ns: int = 500_000_000  # how far setpoints run ahead of the feedback
+    start_delay_ns: int = 50_000_000  # from acceptance to the first setpoint
+    status_period_ns: int = 500_000_000  # progress updates on job_status
+    cancel_latency_ns: int = 10_000_000  # a stop starts this far after the request
+
+
+@dataclass
+class Output:
+    statuses: list[Status] = field(default_factory=list)
+    events: list[dict] = field(default_factory=list)
+    chunks: list[Chunk] = field(default_factory=list)
+
+
+@dataclass
+class _Job:
+    job_id: str
+    job: SimpleNamespace
+    plan: Plan
+    stream: SetpointStream | None = None
+    next_event: int = 0
+    next_status_ns: int = 0
+    final: str = ""  # the state to report once the stop has run out (canceled/aborted)
+    reason: str = ""
+
+
+class Executive:
+    def __init__(self, machine: Machine, settings: Settings | None = None):
+        self.machine = machine
+        self.settings = settings or Settings()
+        self.queue: deque[_Job] = deque()
+        self.active: _Job | None = None
+        self.seen_ids: set[str] = set()
+        self.position: dict[str, float] | None = None  # where the next plan starts
+
+    def _expected_start(self) -> dict[str, float] | None:
+        last = self.queue[-1] if self.queue else self.active
+        return last.plan.final_position() if last is not None else self.position
+
+    def submit(self, text: str) -> Status:
+        """A job_goal message: accepted (queued) or rejected with the field and reason."""
+        doc = None
+        try:
+            doc = decode_job(text)
+            job = parse_job(doc)
+            if job.job_id in self.seen_ids:
+                raise JobError("job_id", f"'{job.job_id}' was already used in this planner's lifetime")
+            plan = plan_job(job, self.machine, self._expected_start())
+        except JobError as err:
+            return Status(job_id_of(doc), "rejected", reason=str(err))
+        self.seen_ids.add(job.job_id)
+        self.queue.append(_Job(job.job_id, job, plan))
+        return Status(job.job_id, "accepted", duration_s=plan.duration)
+
+    def cancel(self, job_id: str, now_ns: int) -> list[Status]:
+        """Cancel a queued job at once, or stop the running one (jerk-limited)."""
+        for queued in list(self.queue):
+            if queued.job_id == job_id:
+                self.queue.remove(queued)
+                return [Status(job_id, "canceled", reason="canceled before it started")]
+        if self.active is not None and self.active.job_id == job_id and not self.active.final:
+            self._stop(now_ns, "canceled", "canceled by request")
+        return []
+
+    def abort(self, reason: str, now_ns: int, stop: bool = True) -> list[Status]:
+        """Abort the running job: stop it (or, if the bridge is gone, just end it)."""
+        if self.active is None or self.active.final:
+            return []
+        if stop:
+            self._stop(now_ns, "aborted", reason)
+            return []
+        job, self.active = self.active, None
+        self.position = None  # unknown until feedback returns
+        return [Status(job.job_id, "aborted", reason=reason)]
+
+    def _stop(self, now_ns: int, final: str, reason: str) -> None:
+        job = self.active
+        job.final, job.reason = final, reason
+        if job.stream is not None:
+            job.stream.stop_from(max(now_ns + self.settings.cancel_latency_ns, job.stream.start_ns), self.machine)
+
+    def feedback(self, positions: dict[str, float]) -> None:
+        """Current joint positions (from joint_states) while idle: where plans start."""
+        if self.active is None and not self.queue:
+            self.position = positions
+
+    def tick(self, now_ns: int) -> Output:
+        """Advance to ``now``: start the next job, stream ahead, report progress and ends."""
+        out = Output()
+        if self.active is None and self.queue and self.position is not None:
+            self._start(now_ns, out)
+        job = self.active
+        if job is None or job.stream is None:
+            return out
+        stream = job.stream
+        while not stream.done and stream.served_until_ns < now_ns + self.settings.lookahead_ns:
+            chunk = stream.next_chunk()
+            out.chunks.append(chunk)
+            self._events_until(job, chunk.end_ns, out)
+        if now_ns >= job.next_status_ns and not stream.done:
+            out.statuses.append(self._running(job, now_ns))
+            job.next_status_ns = now_ns + self.settings.status_period_ns
+        if stream.done and now_ns >= stream.end_ns:
+            self._events_until(job, stream.end_ns, out)
+            self.position = dict(zip(stream.plan.joints, out_last_position(stream)))
+            state = job.final or "succeeded"
+            out.statuses.append(Status(job.job_id, state, reason=job.reason, progress=1.0,
+                                       elapsed_s=(stream.end_ns - stream.start_ns) / NS,
+                                       duration_s=job.plan.duration,
+                                       cycle_time_s=(stream.end_ns - stream.start_ns) / NS))
+            self.active = None
+            if self.queue:
+                self._start(now_ns, out)
+        return out
+
+    def _start(self, now_ns: int, out: Output) -> None:
+        job = self.queue.popleft()
+        expected = job.plan.timelines
+        if any(abs(expected[j].position_at(0.0) - self.position[j]) > 1e-9 for j in self.machine.linear_axes):
+            job.plan = plan_job(job.job, self.machine, self.position)
+        period = self.settings.period_ns
+        start = -(-(now_ns + self.settings.start_delay_ns) // period) * period
+        job.stream = SetpointStream(job.plan, start, period, self.settings.chunk_points)
+        job.next_status_ns = now_ns
+        self.active = job
+
+    def _running(self, job: _Job, now_ns: int) -> Status:
+        stream = job.stream
+        elapsed = max(0.0, stream.plan_time(now_ns))
+        events = job.plan.events
+        phase = next((e.name for e in reversed(events[: job.next_event]) if e.time <= elapsed), "")
+        return Status(job.job_id, "running", progress=min(1.0, elapsed / max(job.plan.duration, 1e-9)),
+                      phase=phase, elapsed_s=elapsed, duration_s=job.plan.duration,
+                      detail=_counts(events, elapsed))
+
+    def _events_until(self, job: _Job, t_ns: int, out: Output) -> None:
+        events = job.plan.events
+        while job.next_event < len(events) and job.stream.start_ns + events[job.next_event].time * NS <= t_ns:
+            e = events[job.next_event]
+            if not job.stream.stopping:
+                out.events.append(_event_doc(job.job_id, job.stream.start_ns, e))
+            job.next_event += 1
+
+
+def out_last_position(stream: SetpointStream) -> np.ndarray:
+    p, _, _ = stream.plan.sample(np.array([stream.plan_time(stream.end_ns)]))
+    return p[0]
+
+
+def _event_doc(job_id: str, start_ns: int, event: Event) -> dict:
+    return {"job_id": job_id, "name": event.name, "stamp_ns": int(start_ns + round(event.time * NS)),
+            "plan_time_s": event.time, **event.data}
+
+
+def _counts(events: list[Event], elapsed: float) -> dict:
+    """How many of each phase mark have passed: holes done, passes done, moves done."""
+    counts: dict[str, int] = {}
+    for e in events:
+        if e.time > elapsed:
+            break
+        counts[e.name] = counts.get(e.name, 0) + 1
+    return counts

@@ -1,0 +1,140 @@
+"""Jerk-limited motion primitives, all computed by ruckig.
+
+Rapids are time-optimal multi-axis point-to-point moves (axes time-synchronised so they
+start and arrive together); linear feed moves are one ruckig profile along the path
+length with limits projected onto the path direction; spindle changes and stops use
+ruckig's velocity interface.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from ruckig import InputParameter, Result, Ruckig, Trajectory
+
+from cnc_msgs_py.machine import Axis
+from cnc_servo_bridge.stop import velocity_trajectory
+
+# Avoid zero-length divisions and ruckig's numerical floor on tiny moves.
+MIN_MOVE = 1e-9
+
+
+class MotionError(ValueError):
+    """Ruckig found no trajectory for the requested move."""
+
+
+@dataclass(frozen=True)
+class Limits:
+    velocity: float
+    acceleration: float
+    jerk: float
+
+
+def axis_limits(axis: Axis) -> Limits:
+    return Limits(axis.max_velocity, axis.max_acceleration, axis.max_jerk)
+
+
+class RuckigMove:
+    """A ruckig trajectory over several degrees of freedom, sampled on demand."""
+
+    def __init__(self, trajectory: Trajectory) -> None:
+        self.trajectory = trajectory
+        self._cache: tuple[tuple[int, float, float], np.ndarray] | None = None
+
+    @property
+    def duration(self) -> float:
+        return self.trajectory.duration
+
+    def sample_all(self, t: np.ndarray) -> np.ndarray:
+        """Array (3, len(t), dofs): position, velocity, acceleration."""
+        # Every joint of a chunk asks for the same instants: evaluate ruckig once.
+        key = (len(t), float(t[0]), float(t[-1])) if len(t) else (0, 0.0, 0.0)
+        if self._cache is not None and self._cache[0] == key:
+            return self._cache[1]
+        out = np.array([self.trajectory.at_time(float(ti)) for ti in t]).transpose(1, 0, 2)
+        self._cache = (key, out)
+        return out
+
+    def sampler(self, dof: int):
+        """A sampler of one degree of freedom, for a JointTimeline piece."""
+
+        def sample(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            out = self.sample_all(t)
+            return out[0][:, dof], out[1][:, dof], out[2][:, dof]
+
+        return sample
+
+
+def point_to_point(start: list[float], target: list[float], limits: list[Limits]) -> RuckigMove:
+    """Time-optimal, time-synchronised move from rest to rest."""
+    inp = InputParameter(len(start))
+    inp.current_position = list(start)
+    inp.target_position = list(target)
+    inp.max_velocity = [lim.velocity for lim in limits]
+    inp.max_acceleration = [lim.acceleration for lim in limits]
+    inp.max_jerk = [lim.jerk for lim in limits]
+    return RuckigMove(calculate(inp))
+
+
+def calculate(inp: InputParameter) -> Trajectory:
+    """Run ruckig offline on a prepared input.
+
+    Raises:
+        MotionError: ruckig found no trajectory.
+    """
+    trajectory = Trajectory(inp.degrees_of_freedom)
+    result = Ruckig(inp.degrees_of_freedom).calculate(inp, trajectory)
+    if result not in (Result.Working, Result.Finished):
+        raise MotionError(f"ruckig could not plan the move ({result.name})")
+    return trajectory
+
+
+def path_limits(direction: np.ndarray, limits: list[Limits], feed: float | None) -> Limits:
+    """Limits along a straight path so that no axis exceeds its own."""
+    share = np.abs(direction)
+    moving = share > 1e-12
+
+    def along(values: list[float]) -> float:
+        return float(np.min(np.asarray(values)[moving] / share[moving]))
+
+    velocity = along([lim.velocity for lim in limits])
+    if feed is not None:
+        velocity = min(velocity, feed)
+    return Limits(velocity, along([lim.acceleration for lim in limits]), along([lim.jerk for lim in limits]))
+
+
+class LinearMove:
+    """A straight move at a feed rate: one ruckig profile of the path length s."""
+
+    def __init__(self, start: np.ndarray, end: np.ndarray, limits: list[Limits], feed: float | None):
+        self.start = np.asarray(start, dtype=float)
+        delta = np.asarray(end, dtype=float) - self.start
+        self.length = float(np.linalg.norm(delta))
+        self.direction = delta / max(self.length, MIN_MOVE)
+        self.limits = path_limits(self.direction, limits, feed)
+        self.profile = point_to_point([0.0], [self.length], [self.limits])
+
+    @property
+    def duration(self) -> float:
+        return self.profile.duration
+
+    def sampler(self, dof: int):
+        d = self.direction[dof]
+        p0 = self.start[dof]
+
+        def sample(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            s = self.profile.sample_all(t)
+            return p0 + d * s[0][:, 0], d * s[1][:, 0], d * s[2][:, 0]
+
+        return sample
+
+
+def velocity_change(
+    position: list[float], velocity: list[float], acceleration: list[float],
+    target_velocity: list[float], limits: list[Limits],
+) -> RuckigMove:
+    """Jerk-limited change to a target velocity (spindle ramps, controlled stops)."""
+    return RuckigMove(velocity_trajectory(
+        position, velocity, acceleration, target_velocity,
+        [lim.velocity for lim in limits], [lim.acceleration for lim in limits], [lim.jerk for lim in limits],
+    ))

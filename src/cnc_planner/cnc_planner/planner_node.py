@@ -1,0 +1,128 @@
+"""cnc_planner node: job topics in, setpoint chunks out. Wiring only; logic in Executive."""
+from __future__ import annotations
+
+import json
+import sys
+
+import rclpy
+from builtin_interfaces.msg import Duration, Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import ExternalShutdownException
+from rclpy.signals import SignalHandlerOptions
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+from std_msgs.msg import String
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from cnc_msgs_py import qos, topics
+from cnc_msgs_py.machine import MachineError, load_machine
+from cnc_msgs_py.status import Status, decode_cancel
+
+from .executive import Executive, Output, Settings
+from .streaming import NS, Chunk
+
+
+def chunk_to_msg(chunk: Chunk) -> JointTrajectory:
+    msg = JointTrajectory()
+    msg.header.stamp = Time(sec=chunk.stamp_ns // NS, nanosec=chunk.stamp_ns % NS)
+    msg.joint_names = list(chunk.joints)
+    for i in range(len(chunk.positions)):
+        offset = i * chunk.period_ns
+        msg.points.append(JointTrajectoryPoint(
+            positions=chunk.positions[i].tolist(), velocities=chunk.velocities[i].tolist(),
+            accelerations=chunk.accelerations[i].tolist(),
+            time_from_start=Duration(sec=offset // NS, nanosec=offset % NS)))
+    return msg
+
+
+class PlannerNode(Node):
+    def __init__(self) -> None:
+        super().__init__("cnc_planner")
+        machine = load_machine(self.declare_parameter("machine", "mill3").value)
+        settings = Settings(
+            period_ns=round(self.declare_parameter("interpolation_period", 0.001).value * NS),
+            chunk_points=self.declare_parameter("chunk_points", 100).value,
+            lookahead_ns=round(self.declare_parameter("lookahead", 0.5).value * NS),
+        )
+        self.feedback_timeout = self.declare_parameter("feedback_timeout", 2.0).value
+        self.executive = Executive(machine, settings)
+        self.joints = machine.joint_names
+        self.status_pub = self.create_publisher(String, topics.JOB_STATUS, qos.JOB_STATUS)
+        self.events_pub = self.create_publisher(String, topics.JOB_EVENTS, qos.JOB_EVENTS)
+        self.trajectory_pub = self.create_publisher(JointTrajectory, topics.JOINT_TRAJECTORY, qos.JOINT_TRAJECTORY)
+        self.create_subscription(String, topics.JOB_GOAL, self.on_goal, qos.JOB_GOAL)
+        self.create_subscription(String, topics.JOB_CANCEL, self.on_cancel, qos.JOB_CANCEL)
+        self.create_subscription(JointState, topics.JOINT_STATES, self.on_feedback, qos.LATEST)
+        self.create_subscription(DiagnosticArray, topics.DIAGNOSTICS, self.on_diagnostics, qos.DIAGNOSTICS)
+        self.wall = Clock(clock_type=ClockType.STEADY_TIME)
+        self.last_feedback_wall = self.wall.now()
+        self.create_timer(0.1, self.watch_feedback, clock=self.wall)
+        self.create_timer(0.05, lambda: self.publish(self.executive.tick(self.now_ns())))
+        self.get_logger().info(f"planning for machine '{machine.name}' joints {self.joints}")
+
+    def now_ns(self) -> int:
+        return self.get_clock().now().nanoseconds
+
+    def publish(self, out: Output) -> None:
+        for chunk in out.chunks:
+            self.trajectory_pub.publish(chunk_to_msg(chunk))
+        for event in out.events:
+            self.events_pub.publish(String(data=json.dumps(event)))
+        for status in out.statuses:
+            self.publish_status(status)
+
+    def publish_status(self, status: Status) -> None:
+        if status.state in ("rejected", "aborted", "canceled"):
+            self.get_logger().warning(f"job '{status.job_id}' {status.state}: {status.reason}")
+        self.status_pub.publish(String(data=status.encode()))
+
+    def on_goal(self, msg: String) -> None:
+        self.publish_status(self.executive.submit(msg.data))
+        self.publish(self.executive.tick(self.now_ns()))
+
+    def on_cancel(self, msg: String) -> None:
+        for status in self.executive.cancel(decode_cancel(msg.data), self.now_ns()):
+            self.publish_status(status)
+        self.publish(self.executive.tick(self.now_ns()))
+
+    def on_feedback(self, msg: JointState) -> None:
+        self.last_feedback_wall = self.wall.now()
+        self.executive.feedback(dict(zip(msg.name, msg.position)))
+        stamp = msg.header.stamp.sec * NS + msg.header.stamp.nanosec
+        self.publish(self.executive.tick(stamp))
+
+    def on_diagnostics(self, msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            if status.level >= DiagnosticStatus.ERROR and status.name.startswith("cnc_servo_bridge"):
+                # The bridge stops the drives itself; the job ends here.
+                self.publish(Output(statuses=self.executive.abort(status.message, self.now_ns(), stop=False)))
+
+    def watch_feedback(self) -> None:
+        silent = (self.wall.now() - self.last_feedback_wall).nanoseconds / NS
+        if self.executive.active is not None and silent > self.feedback_timeout:
+            reason = f"no joint_states from the bridge for {silent:.1f} s"
+            self.publish(Output(statuses=self.executive.abort(reason, self.now_ns(), stop=False)))
+
+
+def main(args: list[str] | None = None) -> int:
+    # Ctrl-C (SIGINT) becomes KeyboardInterrupt in spin, so the node is destroyed cleanly.
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        node = PlannerNode()
+    except (MachineError, ValueError) as err:
+        print(f"cnc_planner: {err}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,113 @@
+"""Cut a Plan into contiguous setpoint chunks on the interpolation grid, on demand.
+
+Times are integer nanoseconds of ROS time (sim or wall), so chunk stamps stay exact
+however long a job runs. A controlled stop replaces the rest of the plan from a given
+instant with a ruckig stop from the state the plan has there.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from cnc_msgs_py.machine import Machine
+
+from .motion import axis_limits, velocity_change
+from .timeline import JointTimeline, Piece, Plan
+
+NS = 1_000_000_000
+
+
+@dataclass
+class Chunk:
+    """Setpoints of consecutive grid instants: stamp of the first, then every period."""
+
+    stamp_ns: int
+    period_ns: int
+    joints: tuple[str, ...]
+    positions: np.ndarray  # (n, joints)
+    velocities: np.ndarray
+    accelerations: np.ndarray
+
+    @property
+    def end_ns(self) -> int:
+        """Time of the last point."""
+        return self.stamp_ns + (len(self.positions) - 1) * self.period_ns
+
+
+class SetpointStream:
+    """Serves a plan as chunks, starting at absolute time ``start_ns``."""
+
+    def __init__(self, plan: Plan, start_ns: int, period_ns: int, chunk_points: int):
+        self.plan = plan
+        self.start_ns = start_ns
+        self.period_ns = period_ns
+        self.chunk_points = chunk_points
+        self.next_index = 0  # grid index (from start_ns) of the next point to serve
+        self.last_index = int(np.ceil(plan.duration * NS / period_ns))
+        self.stopping = False
+
+    @property
+    def end_ns(self) -> int:
+        return self.start_ns + self.last_index * self.period_ns
+
+    @property
+    def served_until_ns(self) -> int:
+        """Time of the last point served so far."""
+        return self.start_ns + (self.next_index - 1) * self.period_ns
+
+    @property
+    def done(self) -> bool:
+        return self.next_index > self.last_index
+
+    def plan_time(self, t_ns: int) -> float:
+        return (t_ns - self.start_ns) / NS
+
+    def next_chunk(self) -> Chunk | None:
+        if self.done:
+            return None
+        first = self.next_index
+        last = min(first + self.chunk_points - 1, self.last_index)
+        ts = np.arange(first, last + 1) * (self.period_ns / NS)
+        p, v, a = self.plan.sample(ts)
+        self.next_index = last + 1
+        if self.done:  # the last point of a job is at rest
+            v[-1] = 0.0
+            a[-1] = 0.0
+        return Chunk(self.start_ns + first * self.period_ns, self.period_ns, self.plan.joints, p, v, a)
+
+    def stop_from(self, t_ns: int, machine: Machine) -> int:
+        """Replace the plan from grid instant ``t_ns`` on by a jerk-limited stop.
+
+        Returns the grid time the stop starts at; the next chunk served starts there, so
+        the bridge replaces whatever it had buffered beyond it.
+        """
+        index = max(0, min(int(np.ceil((t_ns - self.start_ns) / self.period_ns)), self.last_index))
+        t = index * self.period_ns / NS
+        p, v, a = (x[0] for x in self.plan.sample(np.array([t])))
+        joints = self.plan.joints
+        stop = velocity_change(list(p), list(v), list(a), [0.0] * len(joints),
+                               [axis_limits(machine.axes[j]) for j in joints])
+        end = stop.trajectory.at_time(stop.duration)[0]
+        timelines = {}
+        for dof, joint in enumerate(joints):
+            timeline = JointTimeline(float(p[dof]))
+            timeline.add(Piece(0.0, stop.duration, stop.sampler(dof)), float(end[dof]))
+            timelines[joint] = timeline
+        self.plan = _Shifted(Plan(joints, timelines, []), t)
+        self.next_index = index
+        self.last_index = index + int(np.ceil(stop.duration * NS / self.period_ns))
+        self.stopping = True
+        return self.start_ns + index * self.period_ns
+
+
+class _Shifted:
+    """A plan that begins at plan time ``offset`` of the stream."""
+
+    def __init__(self, plan: Plan, offset: float):
+        self.plan = plan
+        self.offset = offset
+        self.joints = plan.joints
+
+    def sample(self, ts: np.ndarray):
+        return self.plan.sample(np.maximum(ts - self.offset, 0.0))

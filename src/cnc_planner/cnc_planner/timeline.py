@@ -1,0 +1,120 @@
+"""A plan as one timeline per joint, sampled lazily at any set of instants.
+
+Each joint moves through pieces (start time, duration, sampler). Between pieces a joint
+coasts at the velocity its last piece ended with: zero for axes, the spindle speed for
+the spindle. Joints have independent timelines so that one axis may start moving before
+another has stopped, which is what overlapped drilling needs. Nothing is sampled until
+a chunk asks for it, so a job of an hour costs memory for its pieces, not its samples.
+"""
+from __future__ import annotations
+
+import bisect
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+# Local time (s, from the piece's start) -> position, velocity, acceleration arrays.
+Sampler = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
+
+
+@dataclass(frozen=True)
+class Piece:
+    start: float
+    duration: float
+    sample: Sampler
+
+    @property
+    def end(self) -> float:
+        return self.start + self.duration
+
+
+@dataclass(frozen=True)
+class Event:
+    """A phase mark published on job_events (hole i S1/S2/S3, pass k, ...)."""
+
+    time: float
+    name: str
+    data: dict = field(default_factory=dict)
+
+
+class JointTimeline:
+    """One joint's motion: pieces in time order, coasting between them."""
+
+    def __init__(self, position: float) -> None:
+        self.pieces: list[Piece] = []
+        self._starts: list[float] = []
+        self._coast: list[tuple[float, float, float]] = [(0.0, position, 0.0)]  # (t, p, v)
+
+    @property
+    def end_time(self) -> float:
+        return self.pieces[-1].end if self.pieces else 0.0
+
+    @property
+    def end_position(self) -> float:
+        return self._coast[-1][1]
+
+    @property
+    def end_velocity(self) -> float:
+        return self._coast[-1][2]
+
+    def position_at(self, t: float) -> float:
+        """Position at a time at or after the last piece (coasting included)."""
+        t0, p0, v0 = self._coast[-1]
+        return p0 + v0 * (t - t0)
+
+    def add(self, piece: Piece, end_position: float, end_velocity: float = 0.0) -> None:
+        if piece.start < self.end_time - 1e-12:
+            raise ValueError(f"piece at {piece.start} s overlaps the timeline ending {self.end_time} s")
+        self.pieces.append(piece)
+        self._starts.append(piece.start)
+        self._coast.append((piece.end, end_position, end_velocity))
+
+    def add_hold(self, start: float, duration: float) -> None:
+        """Stand still (a dwell) so that later moves of this joint start after it."""
+        position = self.position_at(start)
+
+        def hold(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            return np.full_like(t, position), np.zeros_like(t), np.zeros_like(t)
+
+        self.add(Piece(start, duration, hold), position)
+
+    def sample(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position, velocity and acceleration at sorted instants ts."""
+        p = np.empty_like(ts)
+        v = np.empty_like(ts)
+        a = np.zeros_like(ts)
+        # Coasting everywhere first (piece i's coast state applies after piece i-1 ends).
+        coast_index = np.searchsorted([c[0] for c in self._coast], ts, side="right") - 1
+        coast = np.asarray(self._coast)[np.maximum(coast_index, 0)]
+        v[:] = coast[:, 2]
+        p[:] = coast[:, 1] + coast[:, 2] * (ts - coast[:, 0])
+        first = max(bisect.bisect_right(self._starts, ts[0]) - 1, 0)
+        for piece in self.pieces[first:]:
+            if piece.start > ts[-1]:
+                break
+            lo, hi = np.searchsorted(ts, [piece.start, piece.end], side="left")
+            if hi > lo:
+                p[lo:hi], v[lo:hi], a[lo:hi] = piece.sample(ts[lo:hi] - piece.start)
+        return p, v, a
+
+
+@dataclass
+class Plan:
+    """Everything a job will do: joint timelines and phase events, in plan time (s)."""
+
+    joints: tuple[str, ...]
+    timelines: dict[str, JointTimeline]
+    events: list[Event]
+
+    @property
+    def duration(self) -> float:
+        return max(tl.end_time for tl in self.timelines.values())
+
+    def sample(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Setpoints at sorted plan times ts: three arrays of shape (len(ts), joints)."""
+        out = [self.timelines[j].sample(ts) for j in self.joints]
+        return tuple(np.stack([o[k] for o in out], axis=1) for k in range(3))  # type: ignore[return-value]
+
+    def final_position(self) -> dict[str, float]:
+        return {j: self.timelines[j].position_at(self.duration) for j in self.joints}

@@ -1,0 +1,34 @@
+"""ament_python package cnc_planner: installs with colcon (ROS) or pip (plain venv)."""
+from glob import glob
+from pathlib import Path
+
+from setuptools import find_packages, setup
+
+PACKAGE = "cnc_planner"
+ROOT = Path(__file__).resolve().parents[2]  # the workspace: config/ lives there
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/config", glob(str(ROOT / "config/planner.yaml"))),
+        (f"share/{PACKAGE}/config/jobs", glob(str(ROOT / "config/jobs/*.yaml"))),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="CNC control team",
+    maintainer_email="dev@cnc.local",
+    description="Plans CNC jobs (drilling, turning, vibration, threads) into jerk-limited joint setpoints streamed as trajectory_msgs/JointTrajectory; run, plan and analyse CLIs.",
+    license="Apache-2.0",
+    tests_require=["pytest"],
+    entry_points={"console_scripts": [
+        "planner = cnc_planner.planner_node:main",
+        "cnc-planner = cnc_planner.planner_node:main",
+        "cnc-run = cnc_planner.cli:run_main",
+        "cnc-plan = cnc_planner.cli:plan_main",
+        "cnc-analyze = cnc_planner.cli:analyze_main",
+    ]},
+)

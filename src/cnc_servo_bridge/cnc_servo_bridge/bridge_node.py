@@ -1,0 +1,158 @@
+"""cnc_servo_bridge node: setpoint chunks in, emulated drives, joint_states out.
+
+In simulation mode the bridge owns time: it publishes /clock in lockstep with its servo
+steps, runs as fast as setpoints allow while axes move, waits for setpoints (up to
+``underrun_timeout`` of wall time) rather than starving, and paces idle time to the wall
+clock. In real-time mode it steps on a wall timer and stamps with the system clock.
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+import rclpy
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.executors import ExternalShutdownException
+from rclpy.signals import SignalHandlerOptions
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory
+
+from cnc_msgs_py import qos, topics
+from cnc_msgs_py.machine import MachineError, load_machine
+
+from .servo import Feedback, ServoLoop
+from .setpoints import SetpointError
+
+NS = 1_000_000_000
+
+
+def stamp(t_ns: int) -> Time:
+    return Time(sec=t_ns // NS, nanosec=t_ns % NS)
+
+
+class BridgeNode(Node):
+    def __init__(self) -> None:
+        super().__init__("cnc_servo_bridge")
+        machine = load_machine(self.declare_parameter("machine", "mill3").value)
+        self.period_ns = round(self.declare_parameter("servo_period", 0.001).value * NS)
+        self.simulation = self.declare_parameter("simulation", True).value
+        rate = self.declare_parameter("joint_state_rate", 1000.0).value
+        self.publish_every = max(1, round(NS / rate / self.period_ns))
+        clock_rate = self.declare_parameter("clock_rate", 100.0).value
+        self.clock_every = max(1, round(NS / clock_rate / self.period_ns))
+        self.underrun_timeout = self.declare_parameter("underrun_timeout", 1.0).value
+        self.max_steps = self.declare_parameter("steps_per_callback", 200).value
+        start = self.declare_parameter("start_position", [0.0] * len(machine.joint_names)).value
+        self.loop = ServoLoop(machine, self.period_ns, np.asarray(start, dtype=float))
+        self.joints = list(machine.joint_names)
+        self.state_pub = self.create_publisher(JointState, topics.JOINT_STATES, qos.JOINT_STATES)
+        self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS)
+        self.clock_pub = self.create_publisher(Clock, topics.CLOCK, qos.CLOCK) if self.simulation else None
+        self.create_subscription(JointTrajectory, topics.JOINT_TRAJECTORY, self.on_trajectory, qos.JOINT_TRAJECTORY)
+        self.t_ns = 0 if self.simulation else self.get_clock().now().nanoseconds // self.period_ns * self.period_ns
+        self.steps = 0
+        self.rejected = ""
+        self.wall_start = time.monotonic()
+        self.sim_at_wall_start = self.t_ns
+        self.starved_since: float | None = None
+        self.create_timer(0.001, self.run)
+        self.get_logger().info(f"driving '{machine.name}' ({'simulation' if self.simulation else 'real time'})")
+
+    def on_trajectory(self, msg: JointTrajectory) -> None:
+        head = msg.header.stamp.sec * NS + msg.header.stamp.nanosec
+        times = np.array([head + p.time_from_start.sec * NS + p.time_from_start.nanosec for p in msg.points], dtype=np.int64)
+        try:
+            p, v, a = (np.array([getattr(pt, k) for pt in msg.points], dtype=float).reshape(len(msg.points), -1)
+                       for k in ("positions", "velocities", "accelerations"))
+            self.loop.accept(list(msg.joint_names), times, p, v, a, self.t_ns + self.period_ns)
+        except (SetpointError, ValueError) as err:
+            self.rejected = f"refused setpoints: {err}"
+            self.get_logger().error(self.rejected)
+            self.publish_diagnostics()
+
+    def run(self) -> None:
+        """Step the servo loop as far as time (sim: setpoints; real time: the wall) allows."""
+        if self.simulation:
+            for _ in range(self.max_steps):
+                if not self._may_step():
+                    break
+                self._step()
+        else:
+            now = self.get_clock().now().nanoseconds
+            while self.t_ns + self.period_ns <= now:
+                self._step()
+
+    def _may_step(self) -> bool:
+        nxt = self.t_ns + self.period_ns
+        if self.loop.starved(nxt):
+            self.starved_since = self.starved_since or time.monotonic()
+            if time.monotonic() - self.starved_since < self.underrun_timeout:
+                return False  # lockstep: wait for the planner rather than run dry
+        self.starved_since = None
+        end = self.loop.buffer.end_ns
+        if self.loop.at_rest and (end is None or end <= self.t_ns):
+            # Idle: let sim time follow the wall clock so new jobs can be scheduled.
+            wall_ns = (time.monotonic() - self.wall_start) * NS
+            if nxt - self.sim_at_wall_start > wall_ns:
+                return False
+        else:
+            self.wall_start, self.sim_at_wall_start = time.monotonic(), self.t_ns
+        return True
+
+    def _step(self) -> None:
+        feedback = self.loop.step(self.t_ns)
+        if self.clock_pub is not None and self.steps % self.clock_every == 0:
+            self.clock_pub.publish(Clock(clock=stamp(feedback.stamp_ns)))
+        if self.steps % self.publish_every == 0:
+            self.publish_feedback(feedback)
+        if self.steps % 100 == 0:
+            self.publish_diagnostics()
+        self.steps += 1
+        self.t_ns += self.period_ns
+
+    def publish_feedback(self, feedback: Feedback) -> None:
+        msg = JointState(name=self.joints, position=feedback.positions.tolist(), velocity=feedback.velocities.tolist())
+        msg.header.stamp = stamp(feedback.stamp_ns)
+        self.state_pub.publish(msg)
+
+    def publish_diagnostics(self) -> None:
+        alarm = self.loop.alarm or self.rejected
+        status = DiagnosticStatus(
+            level=DiagnosticStatus.ERROR if self.loop.alarm else (DiagnosticStatus.WARN if alarm else DiagnosticStatus.OK),
+            name="cnc_servo_bridge: drives", hardware_id=self.get_namespace(),
+            message=alarm or "ok",
+            values=[KeyValue(key="buffer_s", value=f"{self.loop.buffer.level_s(self.t_ns):.3f}")]
+            + [KeyValue(key=f"max_following_error.{j}", value=f"{e:.9f}")
+               for j, e in zip(self.joints, self.loop.max_following_error)],
+        )
+        msg = DiagnosticArray(status=[status])
+        msg.header.stamp = stamp(self.t_ns)
+        self.diag_pub.publish(msg)
+        self.rejected = ""
+
+
+def main(args: list[str] | None = None) -> int:
+    # Ctrl-C (SIGINT) becomes KeyboardInterrupt in spin, so the node is destroyed cleanly.
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        node = BridgeNode()
+    except (MachineError, ValueError) as err:
+        print(f"cnc_servo_bridge: {err}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

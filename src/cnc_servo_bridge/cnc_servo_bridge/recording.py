@@ -1,0 +1,153 @@
+"""Runs recorded as rosbag2 (MCAP, standard message types) and read back as arrays.
+
+Writing takes the serialized CDR bytes exactly as they came off the wire; reading
+rebuilds the commanded setpoints the bridge executed (later chunks replace buffered
+points from their first stamp on, as the bridge does) and the feedback it published.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from rosbags.highlevel import AnyReader, AnyReaderError
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.typesys import Stores, get_typestore
+
+NS = 1_000_000_000
+TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+
+# Topic (relative to the run's namespace, or absolute) -> message type.
+RECORDED = {
+    "job_goal": "std_msgs/msg/String",
+    "job_cancel": "std_msgs/msg/String",
+    "job_status": "std_msgs/msg/String",
+    "job_events": "std_msgs/msg/String",
+    "joint_trajectory": "trajectory_msgs/msg/JointTrajectory",
+    "joint_states": "sensor_msgs/msg/JointState",
+    "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
+    "/clock": "rosgraph_msgs/msg/Clock",
+}
+
+
+class BagWriter:
+    """Writes serialized messages of the recorded topics to an MCAP rosbag2."""
+
+    def __init__(self, path: Path, topics: dict[str, str]) -> None:
+        self.writer = Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
+        self.writer.open()
+        self.connections = {t: self.writer.add_connection(t, m, typestore=TYPESTORE) for t, m in topics.items()}
+        self.count = 0
+
+    def write(self, topic: str, t_ns: int, data: bytes) -> None:
+        self.writer.write(self.connections[topic], t_ns, data)
+        self.count += 1
+
+    def close(self) -> None:
+        self.writer.close()
+
+
+@dataclass
+class Chunk:
+    stamp_ns: int
+    end_ns: int
+    points: int
+    moving_at_end: bool
+
+
+@dataclass
+class Run:
+    """A recorded run as arrays (SI units, times in s of ROS time)."""
+
+    joints: tuple[str, ...] = ()
+    feedback_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    feedback: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    feedback_velocity: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    command_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    command: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    command_velocity: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    chunks: list[Chunk] = field(default_factory=list)
+    goals: list[str] = field(default_factory=list)
+    statuses: list[dict] = field(default_factory=list)
+    events: list[dict] = field(default_factory=list)
+    alarms: list[str] = field(default_factory=list)
+
+    def column(self, joint: str) -> int:
+        return self.joints.index(joint)
+
+
+def _ns(stamp) -> int:
+    return stamp.sec * NS + stamp.nanosec
+
+
+def read_run(bag: Path) -> Run:
+    """Read a recorded run.
+
+    Raises:
+        FileNotFoundError: no bag at that path.
+        ValueError: the bag cannot be read as a rosbag2.
+    """
+    bag = Path(bag)
+    if not bag.exists():
+        raise FileNotFoundError(f"no recording at {bag}")
+    run = Run()
+    fb_t, fb_p, fb_v = [], [], []
+    setpoints: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+    try:
+        with AnyReader([bag], default_typestore=TYPESTORE) as reader:
+            for conn, _, raw in reader.messages():
+                topic = conn.topic.rsplit("/", 1)[-1]
+                msg = reader.deserialize(raw, conn.msgtype)
+                if topic == "joint_states":
+                    if not run.joints:
+                        run.joints = tuple(msg.name)
+                    fb_t.append(_ns(msg.header.stamp))
+                    fb_p.append(np.asarray(msg.position))
+                    fb_v.append(np.asarray(msg.velocity))
+                elif topic == "joint_trajectory":
+                    head = _ns(msg.header.stamp)
+                    times = np.array([head + _ns(p.time_from_start) for p in msg.points], dtype=np.int64)
+                    order = None
+                    if run.joints:
+                        order = [list(msg.joint_names).index(j) for j in run.joints]
+                    else:
+                        run.joints = tuple(msg.joint_names)
+                    pos = np.array([p.positions for p in msg.points])
+                    vel = np.array([p.velocities for p in msg.points])
+                    if order is not None:
+                        pos, vel = pos[:, order], vel[:, order]
+                    setpoints.append((times, pos, vel))
+                    run.chunks.append(Chunk(int(times[0]), int(times[-1]), len(times), bool(np.any(vel[-1] != 0.0))))
+                elif topic == "job_goal":
+                    run.goals.append(msg.data)
+                elif topic == "job_status":
+                    run.statuses.append(json.loads(msg.data))
+                elif topic == "job_events":
+                    run.events.append(json.loads(msg.data))
+                elif topic == "diagnostics":
+                    run.alarms += [s.message for s in msg.status if s.level >= 2]
+    except (OSError, KeyError, ValueError, AnyReaderError) as err:
+        raise ValueError(f"cannot read recording {bag}: {err}") from err
+    if fb_t:
+        run.feedback_t = np.array(fb_t, dtype=np.int64) / NS
+        run.feedback = np.array(fb_p)
+        run.feedback_velocity = np.array(fb_v)
+    if setpoints:
+        times, pos, vel = _executed(setpoints)
+        run.command_t, run.command, run.command_velocity = times / NS, pos, vel
+    return run
+
+
+def _executed(chunks: list[tuple[np.ndarray, np.ndarray, np.ndarray]]):
+    """Join chunks the way the bridge buffers them: a chunk replaces points from its stamp."""
+    kept: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+    for times, pos, vel in chunks:
+        while kept and kept[-1][0][0] >= times[0]:
+            kept.pop()
+        if kept and kept[-1][0][-1] >= times[0]:
+            t, p, v = kept[-1]
+            keep = int(np.searchsorted(t, times[0]))
+            kept[-1] = (t[:keep], p[:keep], v[:keep])
+        kept.append((times, pos, vel))
+    return tuple(np.concatenate([k[i] for k in kept]) for i in range(3))

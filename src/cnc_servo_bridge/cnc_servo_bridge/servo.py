@@ -1,0 +1,108 @@
+"""The servo loop of the bridge: reference from the buffer, drive model, alarms, stops.
+
+One ``step`` per servo period. The reference comes from the setpoint buffer; when the
+buffer runs dry while the axes still move (planner gone) or an axis trips its following
+error limit, the loop raises an alarm and brings every joint to a jerk-limited stop
+(ruckig) from the reference it was following, then holds.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from ruckig import Trajectory
+
+from cnc_msgs_py.machine import Machine
+
+from .drive import DriveModel
+from .setpoints import REST_VELOCITY, SetpointBuffer, SetpointError
+from .stop import velocity_trajectory
+
+
+@dataclass
+class Feedback:
+    """What the encoders read at ``stamp_ns``, before that period's step."""
+
+    stamp_ns: int
+    positions: np.ndarray
+    velocities: np.ndarray
+    following_error: np.ndarray
+
+
+class ServoLoop:
+    def __init__(self, machine: Machine, servo_period_ns: int, start_position: np.ndarray | None = None):
+        self.machine = machine
+        self.joints = machine.joint_names
+        self.period_ns = servo_period_ns
+        self.drives = DriveModel(machine, servo_period_ns / 1e9)
+        self.buffer = SetpointBuffer(machine)
+        start = np.zeros(len(self.joints)) if start_position is None else np.asarray(start_position, float)
+        self.drives.reset(start)
+        zero = np.zeros(len(self.joints))
+        self.reference = (start.copy(), zero.copy(), zero.copy())
+        self.alarm = ""
+        self.max_following_error = np.zeros(len(self.joints))
+        self._stop: tuple[Trajectory, int] | None = None
+        axes = [machine.axes[j] for j in self.joints]
+        self._limits = ([a.max_velocity for a in axes], [a.max_acceleration for a in axes], [a.max_jerk for a in axes])
+
+    @property
+    def at_rest(self) -> bool:
+        return bool(np.all(np.abs(self.reference[1]) <= REST_VELOCITY)) and self._stop is None
+
+    def accept(self, names: list[str], times_ns: np.ndarray, p, v, a, now_ns: int) -> None:
+        """Validate and buffer a chunk. Raises SetpointError (the diagnostic) if refused."""
+        if self._stop is not None:
+            raise SetpointError(f"stopping after alarm: {self.alarm}")
+        setpoints = self.buffer.validate(names, times_ns, p, v, a, now_ns, self.reference[:2])
+        self.buffer.insert(setpoints)
+        self.alarm = ""  # a valid new trajectory after a completed stop acknowledges it
+
+    def starved(self, t_ns: int) -> bool:
+        """Moving, and the buffer does not reach t: the loop would have to stop."""
+        if self._stop is not None or self.at_rest:
+            return False
+        end = self.buffer.end_ns
+        return end is None or end < t_ns
+
+    def step(self, t_ns: int) -> Feedback:
+        """Advance one servo period from time t."""
+        reference = self._reference_at(t_ns)
+        self.reference = reference
+        error = reference[0] - self.drives.state.measured
+        feedback = Feedback(t_ns, self.drives.state.measured.copy(), self.drives.state.velocity.copy(), error)
+        self.max_following_error = np.maximum(self.max_following_error, np.abs(error))
+        tripped = np.argwhere(np.abs(error) > self.drives.following_error_limit)
+        if len(tripped) and self._stop is None:
+            j = tripped[0][0]
+            self._raise(t_ns, f"following error on {self.joints[j]}: {abs(error[j]):.6f} exceeds "
+                              f"{self.drives.following_error_limit[j]:.6f}")
+        self.drives.step(*reference)
+        return feedback
+
+    def _reference_at(self, t_ns: int):
+        if self._stop is not None:
+            trajectory, start_ns = self._stop
+            local = (t_ns - start_ns) / 1e9
+            if local >= trajectory.duration:
+                self._stop = None
+                p = np.array(trajectory.at_time(trajectory.duration)[0])
+                return p, np.zeros_like(p), np.zeros_like(p)
+            return tuple(np.array(x) for x in trajectory.at_time(local))
+        sample = self.buffer.sample(t_ns)
+        if sample is not None:
+            return tuple(np.array(x, dtype=float) for x in sample)
+        if not self.at_rest:
+            self._raise(t_ns, "setpoint buffer ran dry while moving: holding")
+            return self._reference_at(t_ns)
+        p = self.reference[0]
+        return p, np.zeros_like(p), np.zeros_like(p)
+
+    def _raise(self, t_ns: int, alarm: str) -> None:
+        """Latch an alarm and stop every joint from the current reference."""
+        self.alarm = alarm
+        self.buffer.clear()
+        p, v, a = self.reference
+        zero = [0.0] * len(self.joints)
+        self._stop = (velocity_trajectory(list(p), list(v), list(a), zero, *self._limits), t_ns)
+

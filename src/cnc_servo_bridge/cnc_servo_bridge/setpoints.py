@@ -1,0 +1,155 @@
+"""The bridge's setpoint buffer: checks chunks like joint_trajectory_controller, then
+serves the reference for any servo instant.
+
+A chunk is refused whole (never partly executed) when its joints are unknown or
+missing, its times do not strictly increase, a value is not finite, a point lies
+outside the soft limits, it jumps faster than an axis can move, or it starts in the
+past. A chunk that starts at or before the end of the buffer replaces the buffered
+points from its first stamp on (a controlled stop or a new plan); one that starts later
+must follow a reference at rest.
+"""
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from cnc_msgs_py.machine import Machine
+
+# Headroom over the axis limits before a setpoint counts as a jump (numerical slack).
+LIMIT_TOLERANCE = 0.05
+TRAVEL_TOLERANCE = 1e-6
+REST_VELOCITY = 1e-9
+
+
+class SetpointError(ValueError):
+    """A chunk breaks the setpoint rules; the message is the diagnostic."""
+
+
+@dataclass
+class Setpoints:
+    """Points of one accepted chunk, in the machine's joint order."""
+
+    times_ns: np.ndarray  # absolute, int64
+    positions: np.ndarray  # (n, joints)
+    velocities: np.ndarray
+    accelerations: np.ndarray
+
+
+class SetpointBuffer:
+    def __init__(self, machine: Machine) -> None:
+        self.machine = machine
+        self.joints = machine.joint_names
+        axes = [machine.axes[j] for j in self.joints]
+        self.v_max = np.array([a.max_velocity for a in axes]) * (1 + LIMIT_TOLERANCE)
+        self.a_max = np.array([a.max_acceleration for a in axes]) * (1 + LIMIT_TOLERANCE)
+        self.lo = np.array([a.min if a.min is not None else -np.inf for a in axes]) - TRAVEL_TOLERANCE
+        self.hi = np.array([a.max if a.max is not None else np.inf for a in axes]) + TRAVEL_TOLERANCE
+        self.chunks: deque[Setpoints] = deque()
+
+    @property
+    def end_ns(self) -> int | None:
+        return int(self.chunks[-1].times_ns[-1]) if self.chunks else None
+
+    def level_s(self, now_ns: int) -> float:
+        """How far ahead of now the buffer reaches (s)."""
+        end = self.end_ns
+        return max(0.0, (end - now_ns) / 1e9) if end is not None else 0.0
+
+    def clear(self) -> None:
+        self.chunks.clear()
+
+    def validate(self, names: list[str], times_ns: np.ndarray, p: np.ndarray, v: np.ndarray,
+                 a: np.ndarray, now_ns: int, reference: tuple[np.ndarray, np.ndarray]) -> Setpoints:
+        """Check a chunk and reorder it to the machine's joints; raise SetpointError if bad.
+
+        ``reference`` is the (position, velocity) the drives follow right now: a chunk
+        must continue from it without a jump.
+        """
+        unknown = [n for n in names if n not in self.joints]
+        if unknown:
+            raise SetpointError(f"unknown joint '{unknown[0]}' (machine has {', '.join(self.joints)})")
+        missing = [j for j in self.joints if j not in names]
+        if missing or len(set(names)) != len(names):
+            raise SetpointError(f"joint names must list every joint once (missing {missing})")
+        if len(times_ns) == 0:
+            raise SetpointError("chunk has no points")
+        order = [names.index(j) for j in self.joints]
+        p, v, a = p[:, order], v[:, order], a[:, order]
+        if p.shape != v.shape or p.shape != a.shape:
+            raise SetpointError("every point needs positions, velocities and accelerations")
+        if not (np.isfinite(p).all() and np.isfinite(v).all() and np.isfinite(a).all()):
+            raise SetpointError("chunk holds a NaN or infinite value")
+        if len(times_ns) > 1 and np.any(np.diff(times_ns) <= 0):
+            raise SetpointError("time_from_start must strictly increase")
+        if times_ns[0] < now_ns:
+            raise SetpointError(f"chunk starts {(now_ns - times_ns[0]) / 1e6:.3f} ms in the past")
+        bad = np.argwhere((p < self.lo) | (p > self.hi))
+        if len(bad):
+            i, j = bad[0]
+            raise SetpointError(f"{self.joints[j]} setpoint {p[i, j]:.6f} outside its travel")
+        bad = np.argwhere(np.abs(v) > self.v_max)
+        if len(bad):
+            raise SetpointError(f"{self.joints[bad[0][1]]} velocity {v[tuple(bad[0])]:.4f} beyond its limit")
+        bad = np.argwhere(np.abs(a) > self.a_max)
+        if len(bad):
+            raise SetpointError(f"{self.joints[bad[0][1]]} acceleration {a[tuple(bad[0])]:.3f} beyond its limit")
+        prev_t, prev_p, prev_v = self._state_before(int(times_ns[0]), now_ns, reference)
+        dt = np.diff(np.concatenate(([prev_t], times_ns))) / 1e9
+        steps = np.abs(np.diff(np.vstack([prev_p, p]), axis=0))
+        reach = self.v_max * dt[:, None] + 1e-9
+        bad = np.argwhere(steps > reach)
+        if len(bad):
+            i, j = bad[0]
+            raise SetpointError(f"{self.joints[j]} jumps {steps[i, j]:.6f} in {dt[i] * 1e3:.3f} ms")
+        if times_ns[0] - prev_t > 1.5 * (times_ns[1] - times_ns[0] if len(times_ns) > 1 else 0) and np.any(np.abs(prev_v) > REST_VELOCITY):
+            gap = (times_ns[0] - prev_t) / 1e6
+            raise SetpointError(f"chunk leaves a gap of {gap:.3f} ms after a moving setpoint")
+        return Setpoints(np.asarray(times_ns, dtype=np.int64), p, v, a)
+
+    def _state_before(self, stamp_ns: int, now_ns: int, reference):
+        """The reference just before a chunk's first stamp, to check it continues smoothly."""
+        if self.chunks and stamp_ns <= self.end_ns + 1:
+            for chunk in reversed(self.chunks):
+                k = int(np.searchsorted(chunk.times_ns, stamp_ns, side="left")) - 1
+                if k >= 0:
+                    return int(chunk.times_ns[k]), chunk.positions[k], chunk.velocities[k]
+        if self.chunks:
+            last = self.chunks[-1]
+            return int(last.times_ns[-1]), last.positions[-1], last.velocities[-1]
+        return now_ns, reference[0], reference[1]
+
+    def insert(self, setpoints: Setpoints) -> None:
+        """Append a validated chunk, replacing buffered points from its first stamp on."""
+        stamp = setpoints.times_ns[0]
+        while self.chunks and self.chunks[-1].times_ns[0] >= stamp:
+            self.chunks.pop()
+        if self.chunks and self.chunks[-1].times_ns[-1] >= stamp:
+            last = self.chunks[-1]
+            keep = int(np.searchsorted(last.times_ns, stamp, side="left"))
+            self.chunks[-1] = Setpoints(last.times_ns[:keep], last.positions[:keep],
+                                        last.velocities[:keep], last.accelerations[:keep])
+        self.chunks.append(setpoints)
+
+    def sample(self, t_ns: int) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """Reference at t (linear between points); None when t lies beyond the buffer.
+
+        Before the first point the reference is the first point held (a job's start).
+        Chunks entirely in the past are dropped as they are consumed.
+        """
+        while len(self.chunks) > 1 and self.chunks[1].times_ns[0] <= t_ns:
+            self.chunks.popleft()
+        if not self.chunks:
+            return None
+        chunk = self.chunks[0]
+        times = chunk.times_ns
+        if t_ns > times[-1]:
+            return None
+        k = int(np.searchsorted(times, t_ns, side="right")) - 1
+        if k < 0:
+            return chunk.positions[0], np.zeros_like(chunk.positions[0]), np.zeros_like(chunk.positions[0])
+        if times[k] == t_ns or k == len(times) - 1:
+            return chunk.positions[k], chunk.velocities[k], chunk.accelerations[k]
+        w = (t_ns - times[k]) / (times[k + 1] - times[k])
+        return tuple(x[k] + w * (x[k + 1] - x[k]) for x in (chunk.positions, chunk.velocities, chunk.accelerations))

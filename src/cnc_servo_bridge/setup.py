@@ -1,0 +1,30 @@
+"""ament_python package cnc_servo_bridge: installs with colcon (ROS) or pip (plain venv)."""
+from glob import glob
+from pathlib import Path
+
+from setuptools import find_packages, setup
+
+PACKAGE = "cnc_servo_bridge"
+ROOT = Path(__file__).resolve().parents[2]  # the workspace: config/ lives there
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/config", glob(str(ROOT / "config/bridge.yaml"))),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="CNC control team",
+    maintainer_email="dev@cnc.local",
+    description="Servo drive emulation (position loop, feed-forward, velocity lag, limits) publishing joint_states, and the analysers of recorded runs.",
+    license="Apache-2.0",
+    tests_require=["pytest"],
+    entry_points={"console_scripts": [
+        "bridge = cnc_servo_bridge.bridge_node:main",
+        "cnc-bridge = cnc_servo_bridge.bridge_node:main",
+    ]},
+)

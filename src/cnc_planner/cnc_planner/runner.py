@@ -91,9 +91,93 @@ class Recorder(Node):
         return self.goal_pub.get_subscription_count() >= 2 and self.sim_ns > 0
 
 
-def run_job(text: str, job_id: str, machine: str, bag_dir: Path, *, namespace: str = "/cnc",
-            timeout: float = 900.0, progress: Callable[[dict], None] | None = None,
-            env: dict[str, str] | None = None) -> dict:
+class Session:
+    """Planner and bridge processes under one namespace, recorded to one bag.
+
+    The shape of a task API: ``submit`` a job, ``cancel`` it, ``wait`` for its final
+    status; progress arrives through the ``progress`` callback.
+    """
+
+    def __init__(self, machine: str, bag_dir: Path, *, namespace: str = "/cnc",
+                 env: dict[str, str] | None = None, progress: Callable[[dict], None] | None = None,
+                 bridge_params: dict[str, object] | None = None) -> None:
+        self.env = env or local_dds_env()
+        os.environ.update({k: self.env[k] for k in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_DOMAIN_ID")})
+        self.progress = progress
+        self.procs = {
+            "bridge": subprocess.Popen(node_command(
+                "cnc_servo_bridge.bridge_node", namespace,
+                {"machine": machine, "simulation": True, **(bridge_params or {})}), env=self.env),
+            "planner": subprocess.Popen(node_command(
+                "cnc_planner.planner_node", namespace, {"machine": machine, "use_sim_time": True}), env=self.env),
+        }
+        self.bag = BagWriter(bag_dir, {(t if t.startswith("/") else f"{namespace}/{t}"): m for t, m in RECORDED.items()})
+        rclpy.init()
+        self.recorder = Recorder(self.bag, namespace)
+        self.cancel_pub = self.recorder.create_publisher(String, topics.JOB_CANCEL, qos.JOB_CANCEL)
+        self._shown = 0
+
+    def __enter__(self) -> "Session":
+        try:
+            self.spin_until(self.recorder.ready, 30.0, "the planner and bridge did not come up")
+        except RunError:
+            self.close()
+            raise
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def submit(self, text: str) -> None:
+        self.recorder.goal_pub.publish(String(data=text))
+
+    def cancel(self, job_id: str) -> None:
+        self.cancel_pub.publish(String(data=job_id))
+
+    def final_status(self, job_id: str) -> dict | None:
+        return next((s for s in self.recorder.statuses if s["job_id"] == job_id and s["state"] in FINAL_STATES), None)
+
+    def wait(self, job_id: str, timeout: float) -> dict:
+        """Spin until the job is final; returns its final status document."""
+        self.spin_until(lambda: self.final_status(job_id) is not None, timeout,
+                        f"job '{job_id}' did not end within {timeout:.0f} s")
+        return self.final_status(job_id)
+
+    def settle(self, seconds: float = SETTLE_S) -> None:
+        """Record a little more sim time so the drives' settling shows in the bag."""
+        end = self.recorder.sim_ns + int(seconds * 1e9)
+        self.spin_until(lambda: self.recorder.sim_ns >= end, 10.0, "the bridge stopped publishing")
+
+    def spin_until(self, done: Callable[[], bool], timeout: float, what: str) -> None:
+        deadline = time.monotonic() + timeout
+        while not done():
+            if time.monotonic() > deadline:
+                raise RunError(what)
+            dead = [name for name, p in self.procs.items() if p.poll() is not None]
+            if dead:
+                raise RunError(f"{what}: the {dead[0]} exited with code {self.procs[dead[0]].returncode}")
+            rclpy.spin_once(self.recorder, timeout_sec=0.05)
+            if self.progress is not None:
+                for status in self.recorder.statuses[self._shown:]:
+                    self.progress(status)
+                self._shown = len(self.recorder.statuses)
+
+    def close(self) -> None:
+        self.recorder.destroy_node()
+        rclpy.try_shutdown()
+        for proc in self.procs.values():
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGINT)
+        for proc in self.procs.values():
+            try:
+                proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+        self.bag.close()
+
+
+def run_job(text: str, job_id: str, machine: str, bag_dir: Path, *, timeout: float = 900.0,
+            progress: Callable[[dict], None] | None = None) -> dict:
     """Run one job document (JSON text) through both nodes, recording to ``bag_dir``.
 
     Returns the job's final status document.
@@ -101,52 +185,9 @@ def run_job(text: str, job_id: str, machine: str, bag_dir: Path, *, namespace: s
     Raises:
         RunError: the nodes did not come up, or the job did not end within ``timeout``.
     """
-    env = env or local_dds_env()
-    os.environ.update({k: env[k] for k in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_DOMAIN_ID")})
-    procs = [
-        subprocess.Popen(node_command("cnc_servo_bridge.bridge_node", namespace, {"machine": machine, "simulation": True}), env=env),
-        subprocess.Popen(node_command("cnc_planner.planner_node", namespace, {"machine": machine, "use_sim_time": True}), env=env),
-    ]
-    bag = BagWriter(bag_dir, {(t if t.startswith("/") else f"{namespace}/{t}"): m for t, m in RECORDED.items()})
-    rclpy.init()
-    recorder = Recorder(bag, namespace)
-    try:
-        _spin_until(recorder, recorder.ready, 30.0, procs, "the planner and bridge did not come up")
-        recorder.goal_pub.publish(String(data=text))
-
-        def final() -> dict | None:
-            for status in recorder.statuses:
-                if progress is not None and status.get("_shown") is None:
-                    status["_shown"] = True
-                    progress(status)
-            return next((s for s in recorder.statuses if s["job_id"] == job_id and s["state"] in FINAL_STATES), None)
-
-        _spin_until(recorder, lambda: final() is not None, timeout, procs, f"job '{job_id}' did not end within {timeout:.0f} s")
-        status = final()
-        end = recorder.sim_ns + int(SETTLE_S * 1e9)
+    with Session(machine, bag_dir, progress=progress) as session:
+        session.submit(text)
+        status = session.wait(job_id, timeout)
         if status["state"] != "rejected":
-            _spin_until(recorder, lambda: recorder.sim_ns >= end, 10.0, procs, "the bridge stopped publishing")
-        return {k: v for k, v in status.items() if k != "_shown"}
-    finally:
-        recorder.destroy_node()
-        rclpy.try_shutdown()
-        for proc in procs:
-            if proc.poll() is None:
-                proc.send_signal(signal.SIGINT)
-        for proc in procs:
-            try:
-                proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-        bag.close()
-
-
-def _spin_until(node: Node, done: Callable[[], bool], timeout: float, procs, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while not done():
-        if time.monotonic() > deadline:
-            raise RunError(what)
-        dead = [p for p in procs if p.poll() is not None]
-        if dead:
-            raise RunError(f"{what}: a node exited with code {dead[0].returncode}")
-        rclpy.spin_once(node, timeout_sec=0.05)
+            session.settle()
+        return status

@@ -1,0 +1,121 @@
+"""Overlapped drilling against the conventional cycle and the lower bound, on mill3.
+
+For each pitch x depth: a row of holes along X, entered from one pitch before the first
+hole with the tip 1 mm above R. Both cycles are planned, their commands run through the
+servo drive model every 1 ms and the feedback analysed (cycle time = first to last axis
+motion, safety = samples with the tip below R and X/Y off the hole). Run from the
+workspace root:  python bench/drill_cycle.py  (about a minute). Writes the table to
+bench/results/drill_cycle.txt as well.
+"""
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT / "src" / p) for p in ("cnc_msgs_py", "cnc_planner", "cnc_servo_bridge")]
+
+from cnc_msgs_py.machine import load_machine  # noqa: E402
+from cnc_planner.builder import PlanBuilder  # noqa: E402
+from cnc_planner.drilling import DrillCycle, lower_bound_time, plan_drilling  # noqa: E402
+from cnc_servo_bridge.drill_analysis import analyze_drilling  # noqa: E402
+from cnc_servo_bridge.drive import DriveModel  # noqa: E402
+
+MACHINE = load_machine("mill3")
+PITCHES_MM = (3, 10, 40, 150)
+DEPTHS_MM = (2, 10, 30, 60)
+HOLES = 6
+R_GAP = 0.002
+FEED = 0.02  # 1200 mm/min, the design's example job
+PERIOD = 1e-3
+
+
+def run(cycle: DrillCycle, start: dict[str, float]) -> tuple[dict, list[dict]]:
+    """Plan, drive-model and analyse one cycle: (analysis of the feedback, plan info)."""
+    builder = PlanBuilder(MACHINE, start)
+    infos = plan_drilling(builder, cycle)
+    plan = builder.build()
+    ts = np.arange(0.0, plan.duration + 0.3, PERIOD)
+    p, v, a = plan.sample(ts)
+    cols = [plan.joints.index(j) for j in ("x", "y", "z")]
+    fb, _ = DriveModel(MACHINE, PERIOD, ("x", "y", "z")).simulate(p[:, cols], v[:, cols], a[:, cols])
+    return analyze_drilling(ts, fb[:, 0], fb[:, 1], fb[:, 2], cycle.holes, cycle.r_z, cycle.xy_tolerance), infos
+
+
+def row(pitch_mm: float, depth_mm: float) -> dict:
+    pitch, depth = pitch_mm * 1e-3, depth_mm * 1e-3
+    first = -HOLES * pitch / 2  # the row and its approach centred in the X travel
+    holes = [(first + (i + 1) * pitch, 0.0) for i in range(HOLES)]
+    start = {"x": first, "y": 0.0, "z": R_GAP + 0.001}
+
+    def cycle(**options) -> DrillCycle:
+        return DrillCycle(holes=holes, surface_z=0.0, bottom_z=-depth, r_z=R_GAP, feed=FEED, **options)
+
+    conventional, _ = run(cycle(overlap=False), start)
+    overlapped, infos = run(cycle(), start)
+    gentle, gentle_infos = run(cycle(gentle_air_accel=True), start)
+    bound = lower_bound_time(MACHINE, cycle(), (start["x"], start["y"]))
+    energy = sum(i["air_energy"] for i in infos)
+    modes = sorted({i["mode"] for i in infos[:-1]})
+    return {
+        "pitch": pitch_mm, "depth": depth_mm, "mode": "/".join(map(str, modes)),
+        "conv": conventional["cycle_time_s"], "over": overlapped["cycle_time_s"], "bound": bound,
+        "gap": (overlapped["cycle_time_s"] - bound) / HOLES * 1e3,
+        "viol": overlapped["safety_violations"] + conventional["safety_violations"] + gentle["safety_violations"],
+        "gentle_dt": (gentle["cycle_time_s"] - overlapped["cycle_time_s"]) * 1e3,
+        "gentle_e": 100.0 * (sum(i["air_energy"] for i in gentle_infos) / energy - 1.0),
+    }
+
+
+FOOTNOTES = """\
+mode: auto retract law of holes 1..n-1 (the last hole always brakes to rest at R + 1 mm).
+conv / over: cycle time on the drive model's feedback, first to last axis motion, s.
+bound: lower_bound_time: X/Y positioning + fastest feed-and-exit below R, per hole, s.
+gap: (over - bound) per hole, ms. viol: samples below R off the hole, all three cycles.
+gentle: gentle_air_accel cycle time change (ms) and air energy change (integral a_z^2 dt).
+Why the ratio exceeds 1.03 where it does (it is within 3 % in modes 1/2 from 30 mm depth):
+ * servo lag (all modes, ~45 ms per hole): X/Y feedback settles within 10 um only
+   30-50 ms after its command ends (kp = 50/s, no acceleration feed-forward on mill3),
+   and the tip may not pass R before; starting S1 ~6 ms before Z's command reaches R
+   (still safe on feedback) wins a little back. The bound is command-level and has no
+   lag. Shallow holes at 1200 mm/min spend only 0.3-0.6 s below R, so the lag is 5-10 %
+   there, and 1-3 % at 30-60 mm depth.
+ * end of job (~13 ms per hole here): the bound stops at the last exit through R; the
+   cycle must also brake Z to rest above R and let the axes settle, once per job.
+ * mode 3 (close pitch): the bound lets Z turn round above R in no time. Z needs an air
+   arc from its exit speed back down to feed at R, longer than the short X/Y move, so Z,
+   not X/Y, sets the pace; mode 3 lowers the exit speed to shorten the arc, trading a
+   slower exit for it. Shallow holes at 10-40 mm pitch show the rest of that arc.
+"""
+
+
+def main() -> None:
+    begin = time.perf_counter()
+    header = (f"{'pitch':>5} {'depth':>5} {'mode':>4} {'conv s':>8} {'over s':>8} {'bound s':>8} "
+              f"{'ratio':>6} {'gap ms':>6} {'viol':>4} {'gentle dt ms':>12} {'gentle E %':>10}")
+    lines = [f"mill3, {HOLES} holes along X, feed {FEED * 6e4:.0f} mm/min, "
+             f"R {R_GAP * 1e3:.0f} mm above the surface",
+             header, "-" * len(header)]
+    print("\n".join(lines), flush=True)
+    for pitch in PITCHES_MM:
+        for depth in DEPTHS_MM:
+            r = row(pitch, depth)
+            line = (f"{r['pitch']:>5} {r['depth']:>5} {r['mode']:>4} {r['conv']:>8.3f} {r['over']:>8.3f} "
+                    f"{r['bound']:>8.3f} {r['over'] / r['bound']:>6.3f} {r['gap']:>6.1f} {r['viol']:>4d} "
+                    f"{r['gentle_dt']:>12.1f} {r['gentle_e']:>10.1f}")
+            lines.append(line)
+            print(line, flush=True)
+    lines.append("")
+    lines.append(FOOTNOTES)
+    print(FOOTNOTES)
+    out = ROOT / "bench" / "results" / "drill_cycle.txt"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text("\n".join(lines))
+    print(f"written {out} in {time.perf_counter() - begin:.0f} s")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,526 @@
+"""Drilling cycles on a 3-axis mill: overlapped (S1/S2/S3) and conventional (G81/G99).
+
+Overlapped cycle, per hole i:
+  S1  X/Y rapid to the hole (ruckig, axes synchronised);
+  S2  Z comes down from the top of its air arc R' through the R plane, where it has
+      reached the cutting feed exactly, and feeds to depth;
+  S3  Z retracts; as the tip passes R going up, S1 of the next hole starts.
+Between two holes Z makes one ruckig move from its retract state at R to (R, -feed), the
+air arc R -> R' -> R: R' follows from the motion. The arc lasts the longer of its own
+minimum time and the X/Y move plus the servo-lag margins, so Z descends before S1 ends.
+
+The retract law (mode) trades time below R against time in the air:
+  1  deep, wide pitch: full acceleration out of the hole, rapid reached before R;
+  2  shallow: full acceleration up to R, the speed at R still below rapid;
+  3  close pitch: Z reaches R at a chosen lower speed with zero acceleration, so it starts
+     decelerating before R (the closer the pitch, the lower the speed, the earlier);
+     the short X/Y move then does not wait for a high, long arc.
+Auto picks, per hole, the law with the shortest retract + arc time for the next X/Y move.
+
+Servo lag: X/Y feedback settles some tens of ms after its command ends, Z feedback trails
+its command. The planner runs the bridge's drive model on its own commands and moves the
+Z descent / the next X/Y start by whole servo periods until the feedback never shows the
+tip below R with X/Y off the hole; both gaps start at the smallest value that keeps the
+commands themselves safe, so the cycle loses only what the feedback demands.
+
+Conventional cycle (overlap=False), like G81 with G99: X/Y rapid, Z rapid to R, feed to
+depth, rapid up to R + RETURN_CLEARANCE, each move after the previous one ends.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+from ruckig import ControlInterface, InputParameter
+
+from cnc_msgs_py.machine import Machine
+from cnc_servo_bridge.drive import DriveModel
+
+from .builder import PlanBuilder
+from .motion import Limits, RuckigMove, axis_limits, calculate, point_to_point
+from .timeline import Piece, Plan
+
+# Conventional cycle: X/Y travel at R + 1 mm (G99 returns to R; the 1 mm keeps the tip
+# above R on feedback too, where Z reads up to ~0.3 mm below its command while braking).
+# The overlapped cycle ends at this level as well after its last hole (mode 3).
+RETURN_CLEARANCE = 1e-3
+SAFETY_ROUNDS = 12      # drive-model rounds before giving up on a safe timing
+GENTLE_ROUNDS = 6       # bisection rounds for the gentle air acceleration
+MODE3_GRID = 24         # retract speeds tried per level of the mode-3 search
+FINE_STEP = 1e-4        # s, sampling of tolerance crossings and of a_z^2
+XY = ("x", "y")
+
+
+@dataclass(frozen=True)
+class DrillCycle:
+    """One drilling job in axis coordinates (m, m/s, z up): holes, planes, feed, options.
+
+    mode None lets the planner choose the retract law per hole; 1/2/3 force it.
+    xy_tolerance: X/Y must be this close to the hole, on feedback, whenever the tip is
+    below R. servo_period: the bridge's period, for the drive model the timing uses.
+    """
+
+    holes: list[tuple[float, float]]
+    surface_z: float
+    bottom_z: float
+    r_z: float
+    feed: float
+    overlap: bool = True
+    mode: int | None = None
+    gentle_air_accel: bool = False
+    xy_tolerance: float = 1e-5
+    servo_period: float = 1e-3
+
+    def __post_init__(self) -> None:
+        if not self.holes:
+            raise ValueError("holes: at least one hole is needed")
+        if not self.bottom_z < self.surface_z <= self.r_z:
+            raise ValueError("planes: need bottom_z < surface_z <= r_z")
+        if self.feed <= 0:
+            raise ValueError("feed: must be > 0")
+        if self.mode not in (None, 1, 2, 3):
+            raise ValueError(f"mode: expected None, 1, 2 or 3, got {self.mode!r}")
+        if self.xy_tolerance <= 0 or self.servo_period <= 0:
+            raise ValueError("xy_tolerance and servo_period must be > 0")
+
+
+def _z_move(lim: Limits, p0: float, v0: float, a0: float, p1: float | None = None,
+            v1: float = 0.0, a1: float = 0.0, duration: float = 0.0) -> RuckigMove:
+    """One-axis ruckig move to a state (p1, v1, a1), or to velocity v1 when p1 is None."""
+    inp = InputParameter(1)
+    if p1 is None:
+        inp.control_interface = ControlInterface.Velocity
+    else:
+        inp.target_position = [p1]
+    inp.current_position = [p0]
+    inp.current_velocity = [v0]
+    inp.current_acceleration = [a0]
+    inp.target_velocity = [v1]
+    inp.target_acceleration = [a1]
+    inp.max_velocity = [max(lim.velocity, abs(v0))]
+    inp.max_acceleration = [max(lim.acceleration, abs(a0))]
+    inp.max_jerk = [lim.jerk]
+    if duration > 0:
+        inp.minimum_duration = duration
+    return RuckigMove(calculate(inp))
+
+
+def _state(move: RuckigMove, t: float) -> tuple[float, float, float]:
+    p, v, a = move.trajectory.at_time(t)
+    return float(p[0]), float(v[0]), float(a[0])
+
+
+def _crossing(move: RuckigMove, z: float) -> float:
+    t = move.trajectory.get_first_time_at_position(0, z)
+    if t is None:
+        raise ValueError(f"the Z move never reaches {z} m")
+    return float(t)
+
+
+@dataclass(frozen=True)
+class _Retract:
+    """S3 of one hole up to the R plane: the law (mode), its move and the state at R."""
+
+    mode: int
+    move: RuckigMove
+    t_r: float
+    state: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class _XYMove:
+    """S1 of one hole and when its command leaves / re-enters the position tolerance."""
+
+    target: dict[str, float]
+    move: RuckigMove | None
+    leave: float
+    arrive: float
+
+    @property
+    def duration(self) -> float:
+        return self.move.duration if self.move else 0.0
+
+
+class _Job:
+    """What every round of the timing search shares: limits, moves, retract choices."""
+
+    def __init__(self, machine: Machine, cycle: DrillCycle, start: dict[str, float]):
+        self.machine = machine
+        self.cycle = cycle
+        self.start = start
+        self.z = axis_limits(machine.axes["z"])
+        if cycle.feed > self.z.velocity:
+            raise ValueError(f"feed: {cycle.feed} m/s exceeds the Z rapid {self.z.velocity} m/s")
+        for name, lo in (("bottom_z", cycle.bottom_z), ("start z", start["z"])):
+            if not machine.axes["z"].within_travel(lo):
+                raise ValueError(f"{name}: {lo} m is outside the Z travel")
+        if start["z"] < cycle.r_z:
+            raise ValueError("the tool must start above the R plane")
+        self.n = len(cycle.holes)
+        self.feed_stroke = _z_move(Limits(cycle.feed, self.z.acceleration, self.z.jerk),
+                                   cycle.r_z, -cycle.feed, 0.0, cycle.bottom_z)
+        self.fast = self._fast_exit()
+        position = (start["x"], start["y"])
+        self.xy: list[_XYMove] = []
+        for i, hole in enumerate(cycle.holes):
+            for axis, value in zip(XY, hole):
+                if not machine.axes[axis].within_travel(value):
+                    raise ValueError(f"holes[{i}]: {axis} = {value} m is outside the travel")
+            self.xy.append(_xy_move(machine, position, hole, cycle.xy_tolerance))
+            position = hole
+
+    def _fast_exit(self) -> _Retract:
+        """Full acceleration out of the hole: mode 1 if rapid is reached below R, else 2."""
+        c, z = self.cycle, self.z
+        run = _z_move(z, c.bottom_z, 0.0, 0.0, None, z.velocity)
+        if _state(run, run.duration)[0] <= c.r_z:
+            move = _z_move(z, c.bottom_z, 0.0, 0.0, c.r_z, z.velocity)
+            return _Retract(1, move, move.duration, (c.r_z, z.velocity, 0.0))
+        t_r = _crossing(run, c.r_z)
+        return _Retract(2, run, t_r, _state(run, t_r))
+
+    def arc(self, state: tuple[float, float, float], accel: float | None = None,
+            duration: float = 0.0) -> RuckigMove:
+        """The air move from a state at R (or the start) to R at cutting feed."""
+        lim = Limits(self.z.velocity, accel or self.z.acceleration, self.z.jerk)
+        return _z_move(lim, *state, self.cycle.r_z, -self.cycle.feed, 0.0, duration)
+
+    def _slow_exit(self, speed: float) -> _Retract | None:
+        """Mode 3: reach R at ``speed`` with zero acceleration, or None if that needs an overshoot."""
+        c = self.cycle
+        move = _z_move(self.z, c.bottom_z, 0.0, 0.0, c.r_z, speed)
+        extrema = move.trajectory.position_extrema[0]
+        if extrema.min < c.bottom_z - 1e-9 or extrema.max > c.r_z + 1e-9:
+            return None
+        return _Retract(3, move, move.duration, (c.r_z, speed, 0.0))
+
+    def cost(self, retract: _Retract, air_needed: float) -> float:
+        """Time from the bottom to R at feed over the next hole: retract plus air arc."""
+        return retract.t_r + max(self.arc(retract.state).duration, air_needed)
+
+    def _best_slow_exit(self, air_needed: float) -> _Retract:
+        top = self.fast.state[1]
+        speeds = np.linspace(0.0, top, MODE3_GRID + 1)[:-1]
+        for _ in range(2):
+            found = [r for r in map(self._slow_exit, speeds) if r is not None]
+            costs = [self.cost(r, air_needed) for r in found]
+            best = found[int(np.argmin(costs))]
+            step = speeds[1] - speeds[0]
+            speeds = np.linspace(max(best.state[1] - step, 0.0), min(best.state[1] + step, top), MODE3_GRID)
+        return best
+
+    def retract(self, air_needed: float) -> _Retract:
+        """The retract law for a hole followed by an air arc of at least ``air_needed``."""
+        forced = self.cycle.mode
+        if forced in (1, 2):
+            if self.fast.mode != forced:
+                reason = ("too shallow to reach rapid below R" if forced == 1
+                          else "deep enough to reach rapid below R (mode 1)")
+                raise ValueError(f"mode: {forced} is impossible here, the hole is {reason}")
+            return self.fast
+        slow = self._best_slow_exit(air_needed)
+        if forced == 3 or self.cost(slow, air_needed) < self.cost(self.fast, air_needed) - 1e-6:
+            return slow
+        return self.fast
+
+    def last_retract(self) -> tuple[int, RuckigMove, float, RuckigMove | None]:
+        """S3 of the last hole to rest above R: (mode, move, time at R, stop move or None).
+
+        Modes 1/2 keep their exit law and brake above R; mode 3 (and auto) takes the
+        time-optimal rest-to-rest move to R + RETURN_CLEARANCE, braking before R.
+        """
+        c = self.cycle
+        if c.mode in (1, 2):
+            fast = self.retract(0.0)
+            stop = _z_move(self.z, *fast.state, None, 0.0)
+            return fast.mode, fast.move, fast.t_r, stop
+        move = _z_move(self.z, c.bottom_z, 0.0, 0.0, c.r_z + RETURN_CLEARANCE)
+        return 3, move, _crossing(move, c.r_z), None
+
+
+def _xy_move(machine: Machine, p0: tuple[float, float], p1: tuple[float, float], tol: float) -> _XYMove:
+    """S1 as the builder's rapid will plan it, with its command's tolerance crossings."""
+    target = dict(zip(XY, p1))
+    joints = [j for j, a, b in zip(XY, p0, p1) if abs(a - b) > 1e-12]
+    if not joints:
+        return _XYMove(target, None, math.inf, 0.0)
+    move = point_to_point([dict(zip(XY, p0))[j] for j in joints], [target[j] for j in joints],
+                          [axis_limits(machine.axes[j]) for j in joints])
+    ts = np.arange(0.0, move.duration + FINE_STEP, FINE_STEP)
+    p = move.sample_all(np.minimum(ts, move.duration))[0]
+    start = np.array([dict(zip(XY, p0))[j] for j in joints])
+    end = np.array([target[j] for j in joints])
+    # Conservative on the sampling grid: leave one step early, arrive one step late.
+    left = np.nonzero(np.linalg.norm(p - start, axis=1) > tol)[0]
+    away = np.nonzero(np.linalg.norm(p - end, axis=1) > tol)[0]
+    return _XYMove(target, move, max(ts[left[0]] - FINE_STEP, 0.0), ts[away[-1]] + FINE_STEP)
+
+
+def _add_z(builder: PlanBuilder, start: float, move: RuckigMove, duration: float | None = None) -> float:
+    """Append (the first ``duration`` s of) a Z move; returns its end time."""
+    duration = move.duration if duration is None else duration
+    p, v, _ = _state(move, duration)
+    builder.timelines["z"].add(Piece(start, duration, move.sampler(0)), p, v)
+    return start + duration
+
+
+def _air_energy(move: RuckigMove) -> float:
+    """Integral of a_z^2 dt over an air move: the heat/power proxy of the gentle variant."""
+    ts = np.arange(0.0, move.duration, FINE_STEP)
+    a = np.array([move.trajectory.at_time(float(t))[2][0] for t in ts])
+    return float(np.sum(a * a) * FINE_STEP)
+
+
+# A cycle written into a builder for given gaps (e_down, e_up) and air accelerations.
+Emit = Callable[[PlanBuilder, float, np.ndarray, np.ndarray, np.ndarray, bool], list[dict]]
+
+
+def _emit_overlapped(job: _Job, retracts: list[_Retract]) -> Emit:
+    """Overlapped cycle: e_down[i] = Z at R after the X/Y command ends, e_up[i] = X/Y start
+    after Z passed R up from hole i-1; accel[i] = Z acceleration limit of hole i's air move."""
+    c = job.cycle
+    approach_min = _z_move(job.z, job.start["z"], 0.0, 0.0, c.r_z, -c.feed)
+    arc_min = [approach_min.duration] + [job.arc(r.state).duration for r in retracts[:-1]]
+    last_mode, last_move, last_t_r, stop = job.last_retract()
+
+    def emit(builder: PlanBuilder, t0: float, e_down: np.ndarray, e_up: np.ndarray,
+             accel: np.ndarray, energy: bool) -> list[dict]:
+        u = t0  # when Z last passed R going up (the cycle start for the first hole)
+        infos = []
+        for i, xy in enumerate(job.xy):
+            last = i == job.n - 1
+            mode = last_mode if last else retracts[i].mode
+            t_s1 = t0 if i == 0 else u + e_up[i]
+            xy_end = builder.rapid(xy.target, start=t_s1)
+            builder.event(t_s1, "S1", hole=i, mode=mode)
+            air_time = max(arc_min[i], t_s1 + xy.duration + e_down[i] - u)
+            if i == 0:
+                gentle = accel[0] < job.z.acceleration
+                t_air = t0 if gentle else t0 + air_time - arc_min[0]
+                air = (_z_move(Limits(job.z.velocity, accel[0], job.z.jerk), job.start["z"], 0.0, 0.0,
+                               c.r_z, -c.feed, 0.0, t0 + air_time - t_air) if gentle else approach_min)
+            else:
+                t_air = u
+                air = job.arc(retracts[i - 1].state, accel[i], air_time)
+            t_down = _add_z(builder, t_air, air)
+            apex = air.trajectory.position_extrema[0]
+            builder.event(t_air + apex.t_max, "S2", hole=i, mode=mode)
+            builder.event(t_down, "R_down", hole=i, mode=mode)
+            t_s3 = _add_z(builder, t_down, job.feed_stroke)
+            builder.event(t_s3, "S3", hole=i, mode=mode)
+            if last:
+                u = t_s3 + last_t_r
+                end = _add_z(builder, t_s3, last_move, last_t_r if stop else None)
+                if stop:
+                    _add_z(builder, end, stop)
+            else:
+                u = _add_z(builder, t_s3, retracts[i].move, retracts[i].t_r)
+            builder.event(u, "R_up", hole=i, mode=mode)
+            info = {"hole": i, "x": xy.target["x"], "y": xy.target["y"], "mode": mode,
+                    "s1": float(t_s1), "s1_end": float(xy_end), "s2": float(t_air + apex.t_max),
+                    "r_down": float(t_down),
+                    "s3": float(t_s3), "r_up": float(u), "apex_z": float(apex.max),
+                    "air_time": float(t_down - t_air), "air_accel": float(accel[i])}
+            if energy:
+                info["air_energy"] = _air_energy(air)
+            infos.append(info)
+        return infos
+
+    return emit
+
+
+def _emit_conventional(job: _Job) -> Emit:
+    """Sequential G81/G99 cycle: e_up[i] = dwell before the X/Y move, e_down[i] = dwell
+    between the X/Y move's end and the rapid down to R."""
+    c = job.cycle
+    clearance = c.r_z + RETURN_CLEARANCE
+
+    def emit(builder: PlanBuilder, t0: float, e_down: np.ndarray, e_up: np.ndarray,
+             accel: np.ndarray, energy: bool) -> list[dict]:
+        infos = []
+        for i, xy in enumerate(job.xy):
+            t_s1 = max(builder.end_time(), t0) + e_up[i]
+            xy_end = builder.rapid(xy.target, start=t_s1)
+            builder.event(t_s1, "S1", hole=i, mode=None)
+            t_s2 = xy_end + e_down[i]
+            t_down = builder.rapid({"z": c.r_z}, start=t_s2)
+            builder.event(t_s2, "S2", hole=i, mode=None)
+            builder.event(t_down, "R_down", hole=i, mode=None)
+            t_s3 = builder.linear({"z": c.bottom_z}, c.feed, start=t_down)
+            builder.event(t_s3, "S3", hole=i, mode=None)
+            up = builder.rapid_move({"z": clearance})
+            t_up = t_s3 + _crossing(up, c.r_z)
+            builder.rapid({"z": clearance}, start=t_s3)
+            builder.event(t_up, "R_up", hole=i, mode=None)
+            infos.append({"hole": i, "x": xy.target["x"], "y": xy.target["y"], "mode": None,
+                          "s1": float(t_s1), "s1_end": float(xy_end), "s2": float(t_s2), "r_down": float(t_down),
+                          "s3": float(t_s3), "r_up": float(t_up)})
+        return infos
+
+    return emit
+
+
+def _lag_margins(job: _Job, plan: Plan, infos: list[dict], t0: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per hole, in servo periods, from the drive model's feedback: how late X/Y settles
+    after the tip went below R (down) and how early X/Y leaves before the tip is back
+    above R (up). Positive = unsafe by that many samples, negative = slack."""
+    c = job.cycle
+    period = c.servo_period
+    k0 = math.floor(t0 / period + 1e-9)
+    ts = (k0 + np.arange(math.ceil((plan.duration - t0) / period) + 50)) * period
+    p, v, a = plan.sample(ts)
+    cols = [plan.joints.index(j) for j in ("x", "y", "z")]
+    feedback, _ = DriveModel(job.machine, period, ("x", "y", "z")).simulate(p[:, cols], v[:, cols], a[:, cols])
+    below = feedback[:, 2] < c.r_z
+    starts = np.searchsorted(ts, [info["s1"] for info in infos] + [ts[-1] + 1.0, ts[-1] + 1.0])
+    down = np.zeros(job.n)
+    up = np.zeros(job.n)
+    ku = 0
+    for i, info in enumerate(infos):
+        # S1 may start a few periods before the previous hole's tip is out: skip that.
+        lo, hi = max(starts[i], ku), starts[i + 2]
+        if not below[lo:hi].any():
+            continue
+        kd = lo + int(np.argmax(below[lo:hi]))
+        ku = kd + int(np.argmin(below[kd:hi]))
+        ku = hi if below[ku] else ku
+        # Off-hole samples before the hole's bottom are a late arrival, after it an early exit.
+        kb = kd + int(np.argmin(feedback[kd:ku, 2]))
+        far = np.hypot(feedback[lo:hi, 0] - info["x"], feedback[lo:hi, 1] - info["y"]) > c.xy_tolerance
+        before = np.nonzero(far[: kb - lo])[0]
+        after = np.nonzero(far[kb - lo:])[0]
+        down[i] = (lo + before[-1] + 1 if len(before) else lo) - kd
+        up[i] = ku - (kb + after[0] if len(after) else hi)
+    return down, up
+
+
+def _safe_gaps(job: _Job, emit: Emit, t0: float, e_down: np.ndarray, e_up: np.ndarray,
+               floor_down: np.ndarray, floor_up: np.ndarray, rounds: int = SAFETY_ROUNDS
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Move each gap by whole servo periods until the feedback is safe with no slack left.
+
+    With rounds=1 it returns after one correction, to learn the lag margins. A gap that
+    once had to grow is never shrunk again, so the search cannot oscillate; no gap goes
+    below its floor, where the commands themselves stop being safe.
+    """
+    period = job.cycle.servo_period
+    full = np.full(job.n, job.z.acceleration)
+    grew_down = np.zeros(job.n, bool)
+    grew_up = np.zeros(job.n, bool)
+    for _ in range(rounds):
+        down, up = _margins(job, emit, t0, e_down, e_up, full)
+        up = np.roll(up, 1)  # hole i's exit constrains the start of S1 for hole i+1
+        up[0] = 0.0
+        grew_down |= down > 0
+        grew_up |= up > 0
+        new_down = np.where(grew_down & (down <= 0), e_down, np.maximum(e_down + down * period, floor_down))
+        new_up = np.where(grew_up & (up <= 0), e_up, np.maximum(e_up + up * period, floor_up))
+        if np.all(down <= 0) and np.all(up <= 0) and np.allclose(new_down, e_down) and np.allclose(new_up, e_up):
+            return e_down, e_up
+        e_down, e_up = new_down, new_up
+    if rounds > 1:
+        raise RuntimeError("no safe timing found against the servo lag")
+    return e_down, e_up
+
+
+def _margins(job: _Job, emit: Emit, t0: float, e_down: np.ndarray, e_up: np.ndarray,
+             accel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Plan the cycle on a scratch builder and measure its lag margins on feedback."""
+    builder = PlanBuilder(job.machine, job.start)
+    infos = emit(builder, t0, e_down, e_up, accel, False)
+    return _lag_margins(job, builder.build(), infos, t0)
+
+
+def _gentle_accels(job: _Job, emit: Emit, t0: float, e_down: np.ndarray, e_up: np.ndarray,
+                   starts: list[tuple[float, float, float]], air_times: list[float]) -> np.ndarray:
+    """Lowest Z acceleration per air move that keeps its duration and the feedback safe.
+
+    Time first: bisect the limit until the move's own minimum time just fits the time
+    the cycle leaves it. Then safety: gentler braking into R shrinks Z's favourable lag
+    there, so holes whose feedback turns unsafe get their limit bisected back up
+    (the full limit is the plain cycle, known safe).
+    """
+    full = job.z.acceleration
+    low = np.empty(job.n)
+    for i, (state, air_time) in enumerate(zip(starts, air_times)):
+        lo, hi = max(abs(state[2]), 0.02 * full), full
+        for _ in range(20):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (lo, mid) if job.arc(state, mid).duration <= air_time + 1e-9 else (mid, hi)
+        low[i] = hi
+    safe = np.full(job.n, full)
+    test = low
+    for _ in range(GENTLE_ROUNDS):
+        ok = _margins(job, emit, t0, e_down, e_up, test)[0] <= 0
+        safe = np.where(ok, np.minimum(safe, test), safe)
+        low = np.where(ok, low, test)
+        test = 0.5 * (low + safe)
+    # Keep a lower limit only where it really lowers the energy: ruckig stretches a
+    # move to a given duration differently under different limits.
+    for i, (state, air_time) in enumerate(zip(starts, air_times)):
+        plain = job.arc(state) if i == 0 else job.arc(state, full, air_time)
+        if safe[i] < full and _air_energy(job.arc(state, safe[i], air_time)) >= _air_energy(plain):
+            safe[i] = full
+    return safe
+
+
+def plan_drilling(builder: PlanBuilder, cycle: DrillCycle) -> list[dict]:
+    """Append the whole drilling cycle to ``builder`` (tool above R, at rest) and return,
+    per hole: hole index, x, y, mode, the plan times s1, s1_end, s2 (Z leaves R'),
+    r_down, s3 and r_up; for the overlapped cycle also apex_z (R'), air_time, air_accel
+    and air_energy (integral of a_z^2 dt over the air move into the hole: the proxy the
+    gentle variant lowers).
+
+    The timing search runs the drive model from the cycle's start with the drives at
+    rest there, as after any rapid.
+    """
+    start = {j: builder.position(j) for j in builder.machine.joint_names}
+    job = _Job(builder.machine, cycle, start)
+    t0 = builder.end_time()
+    full = np.full(job.n, job.z.acceleration)
+    if not cycle.overlap:
+        emit = _emit_conventional(job)
+        zeros = np.zeros(job.n)
+        e_down, e_up = _safe_gaps(job, emit, t0, zeros, zeros, zeros, zeros)
+        return emit(builder, t0, e_down, e_up, full, True)
+    # Command-level floors: X/Y may leave the hole only once Z is above R, and must be
+    # back inside the tolerance before Z goes below R (in whole servo periods).
+    period = cycle.servo_period
+    floor_down = np.array([math.ceil((xy.arrive - xy.duration) / period - 1e-9) * period for xy in job.xy])
+    floor_up = np.array([0.0] + [-math.floor(xy.leave / period + 1e-9) * period if xy.move else 0.0
+                                 for xy in job.xy[1:]])
+    xy_time = np.array([xy.duration for xy in job.xy])
+
+    def retracts(e_down: np.ndarray, e_up: np.ndarray) -> list[_Retract]:
+        air_needed = e_up + xy_time + e_down
+        return [job.retract(air_needed[i + 1]) for i in range(job.n - 1)] + [job.fast]
+
+    # One round at the command floors measures the lag margins; with them the retract
+    # laws are chosen once more, then the gaps settle.
+    e_down, e_up = _safe_gaps(job, _emit_overlapped(job, retracts(floor_down, floor_up)), t0,
+                              floor_down, floor_up, floor_down, floor_up, rounds=1)
+    chosen = retracts(e_down, e_up)
+    emit = _emit_overlapped(job, chosen)
+    e_down, e_up = _safe_gaps(job, emit, t0, e_down, e_up, floor_down, floor_up)
+    accel = full
+    if cycle.gentle_air_accel:
+        infos = emit(PlanBuilder(job.machine, start), t0, e_down, e_up, full, False)
+        ups = [t0] + [info["r_up"] for info in infos[:-1]]
+        air_times = [info["r_down"] - u for info, u in zip(infos, ups)]
+        starts = [(start["z"], 0.0, 0.0)] + [r.state for r in chosen[:-1]]
+        accel = _gentle_accels(job, emit, t0, e_down, e_up, starts, air_times)
+    return emit(builder, t0, e_down, e_up, accel, True)
+
+
+def lower_bound_time(machine: Machine, cycle: DrillCycle,
+                     start_xy: tuple[float, float] | None = None) -> float:
+    """Sum over holes of the X/Y positioning time (from ``start_xy`` for the first hole,
+    if given) and the fastest possible time below R: feed from R to depth, then full
+    acceleration back to R. X/Y may not move while the tip is below R, so no safe cycle
+    is shorter."""
+    first = start_xy if start_xy is not None else cycle.holes[0]
+    job = _Job(machine, cycle, {"x": first[0], "y": first[1], "z": cycle.r_z})
+    below = job.feed_stroke.duration + job.fast.t_r
+    return sum(xy.duration for xy in job.xy) + job.n * below

@@ -1,0 +1,189 @@
+"""Overlapped drilling: safe on the drive model's feedback, within limits, faster than G81."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cnc_msgs_py.machine import load_machine
+from cnc_planner.builder import PlanBuilder
+from cnc_planner.drilling import DrillCycle, lower_bound_time, plan_drilling
+from cnc_servo_bridge.drill_analysis import analyze_drilling
+from cnc_servo_bridge.drive import DriveModel
+
+MACHINE = load_machine("mill3")
+PERIOD = 1e-3
+R_GAP = 0.002
+FEED = 0.02  # 1200 mm/min
+DIRECTIONS = {"x": (1.0, 0.0), "y": (0.0, 1.0), "diagonal": (0.6, 0.8)}
+
+
+def make_cycle(pitch: float, depth: float, direction=(1.0, 0.0), n: int = 3, **options) -> DrillCycle:
+    holes = [(i * pitch * direction[0] - 0.1, i * pitch * direction[1] - 0.1) for i in range(n)]
+    return DrillCycle(holes=holes, surface_z=0.0, bottom_z=-depth, r_z=R_GAP, feed=FEED, **options)
+
+
+def start_of(cycle: DrillCycle) -> dict[str, float]:
+    """One pitch before the first hole, 1 mm above R: as if coming from a previous hole."""
+    (x0, y0), (x1, y1) = cycle.holes[0], cycle.holes[1]
+    return {"x": 2 * x0 - x1, "y": 2 * y0 - y1, "z": R_GAP + 0.001}
+
+
+def run(cycle: DrillCycle, start: dict[str, float] | None = None):
+    """Plan the cycle, sample its commands every servo period and run the drive model."""
+    builder = PlanBuilder(MACHINE, start or start_of(cycle))
+    infos = plan_drilling(builder, cycle)
+    plan = builder.build()
+    ts = np.arange(0.0, plan.duration + 0.2, PERIOD)
+    p, v, a = plan.sample(ts)
+    cols = [plan.joints.index(j) for j in ("x", "y", "z")]
+    feedback, _ = DriveModel(MACHINE, PERIOD, ("x", "y", "z")).simulate(p[:, cols], v[:, cols], a[:, cols])
+    return plan, infos, ts, p[:, cols], feedback
+
+
+def analysis(cycle: DrillCycle, ts: np.ndarray, xyz: np.ndarray) -> dict:
+    return analyze_drilling(ts, xyz[:, 0], xyz[:, 1], xyz[:, 2], cycle.holes, cycle.r_z, cycle.xy_tolerance)
+
+
+@pytest.mark.parametrize("direction", sorted(DIRECTIONS))
+@pytest.mark.parametrize("depth", [0.002, 0.010, 0.030])
+@pytest.mark.parametrize("pitch", [0.003, 0.010, 0.040])
+def test_auto_cycle_is_safe_on_feedback_and_commands(pitch, depth, direction):
+    cycle = make_cycle(pitch, depth, DIRECTIONS[direction])
+    _, infos, ts, commands, feedback = run(cycle)
+    assert analysis(cycle, ts, feedback)["safety_violations"] == 0
+    assert analysis(cycle, ts, commands)["safety_violations"] == 0
+    assert len(infos) == len(cycle.holes)
+
+
+@pytest.mark.parametrize("mode, pitch, depth", [
+    (3, 0.003, 0.002), (3, 0.010, 0.010), (3, 0.040, 0.030), (3, 0.150, 0.010),
+    (2, 0.003, 0.002), (2, 0.010, 0.010), (2, 0.040, 0.030), (2, 0.150, 0.002),
+    (1, 0.003, 0.060), (1, 0.040, 0.060), (1, 0.150, 0.060),
+])
+def test_forced_modes_are_safe_on_feedback(mode, pitch, depth):
+    cycle = make_cycle(pitch, depth, DIRECTIONS["diagonal"], mode=mode)
+    _, infos, ts, _, feedback = run(cycle)
+    assert analysis(cycle, ts, feedback)["safety_violations"] == 0
+    assert {info["mode"] for info in infos} == {mode}
+
+
+def test_holes_in_any_order_are_safe():
+    holes = [(0.02, 0.0), (-0.01, 0.015), (0.0, 0.0), (0.025, 0.003), (0.004, 0.03)]
+    cycle = DrillCycle(holes=holes, surface_z=0.0, bottom_z=-0.008, r_z=R_GAP, feed=FEED)
+    _, infos, ts, _, feedback = run(cycle, {"x": 0.0, "y": -0.02, "z": 0.01})
+    result = analysis(cycle, ts, feedback)
+    assert result["safety_violations"] == 0
+    r_down = [hole["r_down_s"] for hole in result["holes"]]
+    assert r_down == sorted(r_down)  # drilled in the given order
+    assert all(abs(hole["depth_mm"] - 8.0) < 0.1 for hole in analyze_drilling(
+        ts, feedback[:, 0], feedback[:, 1], feedback[:, 2], holes, R_GAP, 1e-5, surface_z=0.0)["holes"])
+
+
+@pytest.mark.parametrize("overlap", [True, False])
+def test_commands_respect_axis_limits(overlap):
+    cycle = make_cycle(0.010, 0.010, DIRECTIONS["diagonal"], n=4, overlap=overlap)
+    _, _, ts, commands, _ = run(cycle)
+    velocity = np.diff(commands, axis=0) / PERIOD
+    acceleration = np.diff(velocity, axis=0) / PERIOD
+    for k, name in enumerate(("x", "y", "z")):
+        axis = MACHINE.axes[name]
+        assert np.abs(velocity[:, k]).max() <= axis.max_velocity * 1.001
+        # Finite differences of a jerk-limited profile overshoot by at most jerk * period.
+        assert np.abs(acceleration[:, k]).max() <= axis.max_acceleration + axis.max_jerk * PERIOD
+    descending = (commands[1:, 2] < cycle.r_z) & (velocity[:, 2] < 0)
+    assert -velocity[descending, 2].min() <= FEED * 1.01  # below R, Z goes down at cutting feed
+
+
+@pytest.mark.parametrize("pitch, depth, mode", [
+    (0.150, 0.060, 1),  # deep, wide pitch: rapid reached before R
+    (0.150, 0.002, 2),  # shallow: speed at R below rapid
+    (0.150, 0.030, 2),
+    (0.003, 0.010, 3),  # close pitch: decelerate before R
+    (0.010, 0.060, 3),
+])
+def test_auto_mode_follows_depth_and_pitch(pitch, depth, mode):
+    _, infos, _, commands, _ = run(make_cycle(pitch, depth, n=4))
+    # The last hole brakes to rest above R (mode 3): no next hole to hurry to.
+    assert [info["mode"] for info in infos] == [mode] * 3 + [3]
+
+
+def test_mode_definitions_at_r():
+    """Speed at R going up: mode 1 at rapid, mode 2 below rapid still accelerating,
+    mode 3 lower and already decelerating before R, the lower the closer the pitch."""
+    def exit_state(pitch, depth, mode=None):
+        plan, infos, *_ = run(make_cycle(pitch, depth, n=3, mode=mode))
+        t_up = infos[0]["r_up"]
+        _, v, a = plan.timelines["z"].sample(np.array([t_up - 1e-4]))
+        return v[0], a[0]
+
+    rapid = MACHINE.axes["z"].max_velocity
+    v1, _ = exit_state(0.150, 0.060)
+    v2, a2 = exit_state(0.150, 0.002)
+    v3_close, a3_close = exit_state(0.003, 0.030, mode=3)
+    v3_wide, _ = exit_state(0.040, 0.030, mode=3)
+    assert v1 == pytest.approx(rapid, rel=1e-3)
+    assert v2 < rapid and a2 > 0.5 * MACHINE.axes["z"].max_acceleration
+    assert a3_close < 0 and v3_close < v3_wide < rapid
+
+
+def test_forced_mode_that_the_depth_forbids_is_rejected():
+    with pytest.raises(ValueError, match="mode: 1"):
+        plan_drilling(PlanBuilder(MACHINE, {"z": 0.01}), make_cycle(0.01, 0.005, mode=1))
+
+
+def test_tool_below_r_is_rejected():
+    with pytest.raises(ValueError, match="above the R plane"):
+        plan_drilling(PlanBuilder(MACHINE, {"z": 0.0}), make_cycle(0.01, 0.005))
+
+
+@pytest.mark.parametrize("pitch, depth", [(0.003, 0.002), (0.040, 0.010), (0.150, 0.030)])
+def test_overlapped_is_faster_than_conventional_and_above_the_bound(pitch, depth):
+    times = {}
+    for overlap in (True, False):
+        cycle = make_cycle(pitch, depth, n=4, overlap=overlap)
+        _, _, ts, _, feedback = run(cycle)
+        result = analysis(cycle, ts, feedback)
+        assert result["safety_violations"] == 0
+        times[overlap] = result["cycle_time_s"]
+    start = start_of(cycle)
+    bound = lower_bound_time(MACHINE, cycle, (start["x"], start["y"]))
+    assert bound < times[True] < times[False]
+
+
+def test_events_mark_every_phase_in_order():
+    cycle = make_cycle(0.040, 0.010, n=3)
+    builder = PlanBuilder(MACHINE, start_of(cycle))
+    infos = plan_drilling(builder, cycle)
+    plan = builder.build()
+    for info in infos:
+        names = [e.name for e in plan.events if e.data.get("hole") == info["hole"]]
+        assert sorted(names) == ["R_down", "R_up", "S1", "S2", "S3"]
+        assert info["s2"] <= info["r_down"] <= info["s3"] <= info["r_up"]
+        assert all(e.data["mode"] == info["mode"] for e in plan.events if e.data.get("hole") == info["hole"])
+    for before, after in zip(infos, infos[1:]):
+        # S1 starts as the tip passes R going up (a few ms early where the commands allow),
+        # and S2 starts before S1 ends: the air path is an arc.
+        assert abs(after["s1"] - before["r_up"]) < 0.01
+        assert after["s2"] < after["s1_end"]
+
+
+@pytest.mark.parametrize("pitch, depth", [(0.010, 0.010), (0.040, 0.002), (0.150, 0.030)])
+def test_gentle_air_keeps_cycle_time_and_lowers_energy(pitch, depth):
+    results = {}
+    for gentle in (False, True):
+        cycle = make_cycle(pitch, depth, n=4, gentle_air_accel=gentle)
+        plan, infos, ts, _, feedback = run(cycle)
+        assert analysis(cycle, ts, feedback)["safety_violations"] == 0
+        results[gentle] = (plan.duration, sum(info["air_energy"] for info in infos))
+    assert results[True][0] == pytest.approx(results[False][0], abs=1e-3)
+    assert results[True][1] < results[False][1]
+
+
+def test_conventional_cycle_is_sequential():
+    cycle = make_cycle(0.010, 0.005, n=3, overlap=False)
+    _, infos, ts, commands, feedback = run(cycle)
+    assert analysis(cycle, ts, feedback)["safety_violations"] == 0
+    for before, after in zip(infos, infos[1:]):
+        assert after["s1"] >= before["r_up"]
+    result = analysis(cycle, ts, commands)
+    assert all(hole["overlap_down_s"] == 0.0 and hole["overlap_up_s"] == 0.0 for hole in result["holes"])

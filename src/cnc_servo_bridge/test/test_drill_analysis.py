@@ -1,0 +1,78 @@
+"""The drilling analyser against a piecewise-linear trajectory computed by hand."""
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+import pytest
+
+from cnc_servo_bridge.drill_analysis import analyze_drilling
+
+R = 0.002
+TOL = 1e-5
+HOLES = [(0.0, 0.0), (0.01, 0.0)]
+T = np.arange(10001) / 1000.0  # 0..10 s every 1 ms, exact at whole ms
+# Z: rest at 4 mm, down through R to 0 (hole A), up to 4 mm, on to 6 mm (R'), down to 0
+# (hole B), up to 4 mm. R = 2 mm is crossed at 1.5, 3.5, 5.6 and 7.5 s.
+Z_KNOTS = ([0, 1, 2, 3, 4, 4.6, 6.1, 7, 8, 10], [0.004, 0.004, 0, 0, 0.004, 0.006, 0, 0, 0.004, 0.004])
+
+
+def trajectory(x_start: float):
+    """X moves 0 -> 10 mm linearly in 1.5 s from ``x_start``; Y stays at 0."""
+    x = np.interp(T, [x_start, x_start + 1.5], [0.0, 0.01])
+    return x, np.zeros_like(T), np.interp(T, *Z_KNOTS)
+
+
+def test_hand_computed_overlap_times():
+    x, y, z = trajectory(3.8)
+    result = analyze_drilling(T, x, y, z, HOLES, R, TOL, surface_z=0.001)
+    a, b = result["holes"]
+    # X leaves A's tolerance at 3.8 + 1.5 * 1e-5 / 0.01 and enters B's 1.5 ms before 5.3 s.
+    leave, arrive = 3.8015, 5.2985
+    assert result["safety_violations"] == 0
+    assert a["in_position_s"] == pytest.approx(0.0)
+    assert a["r_down_s"] == pytest.approx(1.5) and a["r_up_s"] == pytest.approx(3.5)
+    assert b["r_down_s"] == pytest.approx(5.6) and b["r_up_s"] == pytest.approx(7.5)
+    assert b["in_position_s"] == pytest.approx(arrive, abs=1e-9)
+    assert a["overlap_down_s"] == 0.0  # X/Y was in place before Z left its rest at t = 1
+    assert a["overlap_up_s"] == pytest.approx(4.6 - leave)  # Z rose to R' after X/Y left
+    assert b["overlap_down_s"] == pytest.approx(arrive - 4.6)  # Z descended from R' before X/Y arrived
+    assert b["overlap_up_s"] == 0.0
+    assert a["depth_mm"] == pytest.approx(1.0) and b["depth_mm"] == pytest.approx(1.0)
+    assert (a["x_mm"], b["x_mm"], a["index"], b["index"]) == (0.0, 10.0, 0, 1)
+    # Motion: Z leaves its start rest by more than TOL after 1.0025 s (first sample 1.003 s)
+    # and is within TOL of its end rest from 7.9975 s (last sample off it: 7.997 s).
+    assert result["cycle_time_s"] == pytest.approx(7.997 - 1.003)
+    assert a["cycle_time_s"] == pytest.approx(3.5 - 1.003)
+    assert b["cycle_time_s"] == pytest.approx(7.5 - 3.5)
+    json.dumps(result)
+
+
+def test_xy_leaving_before_the_tip_is_out_counts_violations():
+    # X leaves at 3.2 s: off A's tolerance from the 3.202 s sample; the tip stays below R
+    # up to the 3.499 s sample.
+    x, y, z = trajectory(3.2)
+    result = analyze_drilling(T, x, y, z, HOLES, R, TOL)
+    assert result["safety_violations"] == 298
+    assert "depth_mm" not in result["holes"][0]
+
+
+def test_hole_never_drilled_has_no_times():
+    x, y, z = trajectory(3.8)
+    result = analyze_drilling(T, x, y, z, HOLES + [(0.05, 0.05)], R, TOL)
+    assert result["holes"][2]["r_down_s"] is None
+    assert result["holes"][2]["cycle_time_s"] is None
+
+
+def test_a_million_samples_in_well_under_a_second():
+    x, y, z = trajectory(3.8)
+    reps = 100
+    t = np.arange(len(T) * reps) / 1000.0
+    offsets = np.repeat(np.arange(reps) * 0.02, len(T))
+    holes = [(k * 0.02 + hx, hy) for k in range(reps) for hx, hy in HOLES]
+    begin = time.perf_counter()
+    result = analyze_drilling(t, np.tile(x, reps) + offsets, np.tile(y, reps), np.tile(z, reps), holes, R, TOL)
+    assert time.perf_counter() - begin < 1.5
+    assert result["safety_violations"] == 0
+    assert all(hole["r_down_s"] is not None for hole in result["holes"])

@@ -21,13 +21,15 @@ from .jobs import plan_job
 from .streaming import NS, Chunk, SetpointStream
 from .timeline import Event, Plan
 
+START_MATCH = 1e-6  # m: a plan made from another position than the axes hold is redone
+
 
 @dataclass
 class Settings:
     period_ns: int = 1_000_000  # interpolation period
     chunk_points: int = 100
     lookahead_ns: int = 500_000_000  # how far setpoints run ahead of the feedback
-    start_delay_ns: int = 50_000_000  # from acceptance to the first setpoint
+    start_delay_ns: int = 100_000_000  # from the feedback that starts a job to its first setpoint
     status_period_ns: int = 500_000_000  # progress updates on job_status
     cancel_latency_ns: int = 10_000_000  # a stop starts this far after the request
 
@@ -107,8 +109,12 @@ class Executive:
             job.stream.stop_from(max(now_ns + self.settings.cancel_latency_ns, job.stream.start_ns), self.machine)
 
     def feedback(self, positions: dict[str, float]) -> None:
-        """Current joint positions (from joint_states) while idle: where plans start."""
-        if self.active is None and not self.queue:
+        """Current joint positions (from joint_states) while idle: where plans start.
+
+        With jobs queued, only an unknown position (none yet, or after an abort) is
+        taken: otherwise queued jobs would wait for it forever.
+        """
+        if self.active is None and (not self.queue or self.position is None):
             self.position = positions
 
     def tick(self, now_ns: int) -> Output:
@@ -124,7 +130,7 @@ class Executive:
             chunk = stream.next_chunk()
             out.chunks.append(chunk)
             self._events_until(job, chunk.end_ns, out)
-        if now_ns >= job.next_status_ns and not stream.done:
+        if now_ns >= job.next_status_ns and now_ns < stream.end_ns:  # until the job ends, not until all is served
             out.statuses.append(self._running(job, now_ns))
             job.next_status_ns = now_ns + self.settings.status_period_ns
         if stream.done and now_ns >= stream.end_ns:
@@ -136,15 +142,24 @@ class Executive:
                                        duration_s=job.plan.duration,
                                        cycle_time_s=(stream.end_ns - stream.start_ns) / NS))
             self.active = None
-            if self.queue:
-                self._start(now_ns, out)
         return out
 
     def _start(self, now_ns: int, out: Output) -> None:
-        job = self.queue.popleft()
-        expected = job.plan.timelines
-        if any(abs(expected[j].position_at(0.0) - self.position[j]) > 1e-9 for j in self.machine.linear_axes):
-            job.plan = plan_job(job.job, self.machine, self.position)
+        """Start the next job on the grid, from where the axes really stand.
+
+        If they stand elsewhere than the job was planned from (after a cancel or an abort),
+        it is planned again first and starts on the next tick, with a fresh ``now``.
+        """
+        job = self.queue[0]
+        planned_from = job.plan.start_position()
+        if any(abs(planned_from[j] - self.position[j]) > START_MATCH for j in self.machine.linear_axes):
+            try:
+                job.plan = plan_job(job.job, self.machine, self.position)
+            except JobError as err:
+                self.queue.popleft()
+                out.statuses.append(Status(job.job_id, "aborted", reason=f"cannot start from here: {err}"))
+            return
+        self.queue.popleft()
         period = self.settings.period_ns
         start = -(-(now_ns + self.settings.start_delay_ns) // period) * period
         job.stream = SetpointStream(job.plan, start, period, self.settings.chunk_points)

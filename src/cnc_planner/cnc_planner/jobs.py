@@ -6,16 +6,28 @@ with the field that broke it.
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from types import SimpleNamespace
 from typing import Callable
+
+import numpy as np
 
 from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.units import to_rpm
 
+from cnc_servo_bridge.drive import DriveModel
+
 from .builder import PlanBuilder
+from .drilling import RETURN_CLEARANCE, DrillCycle, plan_drilling
 from .kinematics import Kinematics
-from .timeline import Plan
+from .motion import axis_limits, path_limits
+from .timeline import Piece, Plan
+from .turning import TurningError, check_outlines, plan_roughing
+from .vibration import Vibration, VibrationError, VibrationFeed
+
+TWO_PI = 6.283185307179586
+VIBRATION_SERVO_PERIOD = 1e-3  # the bridge's servo period the compensation is computed for
 
 
 def check_travel(machine: Machine, axes: dict[str, float], field: str) -> None:
@@ -38,9 +50,61 @@ def _program_axes(machine: Machine, target: SimpleNamespace, field: str) -> list
     return given
 
 
+def vibration_of(job: SimpleNamespace) -> Vibration | None:
+    v = job.vibration
+    return None if v is None else Vibration(D=v.D, Q=v.Q, E=v.E, R=v.R)
+
+
+def feed_move(builder: PlanBuilder, target: dict[str, float], feed_per_rev: float,
+              vibration: Vibration | None, field: str) -> float:
+    """A straight feed at ``feed_per_rev`` of the turning spindle, with chip-breaking
+    vibration along the path if given; returns the end time.
+
+    The vibration is locked to the spindle angle, so the move starts once the spindle
+    runs at speed; the drive model of the axis that moves most pre-compensates it.
+    """
+    machine = builder.machine
+    speed = builder.timelines[SPINDLE].end_velocity
+    if vibration is None:
+        return builder.linear(target, feed_per_rev * abs(speed) / TWO_PI)
+    joints = list(target)
+    p0 = np.array([builder.position(j) for j in joints])
+    delta = np.array([target[j] for j in joints]) - p0
+    length = float(np.linalg.norm(delta))
+    if length <= 1e-12:
+        return builder.end_time(joints)
+    direction = delta / length
+    lim = path_limits(direction, [axis_limits(machine.axes[j]) for j in joints], None)
+    along = replace(machine.axes[joints[0]], max_velocity=lim.velocity,
+                    max_acceleration=lim.acceleration, max_jerk=lim.jerk)
+    lead = joints[int(np.argmax(np.abs(direction)))]
+    start = max(builder.end_time(joints), builder.spindle_ready)
+    try:
+        move = VibrationFeed(length, feed_per_rev, vibration, abs(speed), along,
+                             start_angle=builder.timelines[SPINDLE].position_at(start),
+                             drive_model_factory=lambda: DriveModel(machine, VIBRATION_SERVO_PERIOD, (lead,)))
+    except VibrationError as err:
+        raise JobError(str(err).split(":", 1)[0], str(err).split(":", 1)[1].strip()) from err
+    builder.event(start, "vibration_feed", start=p0.tolist(), direction=direction.tolist(),
+                  joints=joints, length=length, feed_per_rev=feed_per_rev, field=field)
+    for dof, joint in enumerate(joints):
+        builder.timelines[joint].add(Piece(start, move.duration, _along(move, p0[dof], direction[dof])),
+                                     float(target[joint]))
+    builder.event(start + move.duration, "vibration_end")
+    return start + move.duration
+
+
+def _along(move: VibrationFeed, p0: float, d: float):
+    def sample(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        s, v, a = move.sample(t)
+        return p0 + d * s, d * v, d * a
+    return sample
+
+
 def plan_move(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin: Kinematics) -> None:
     """A list of rapid, linear and dwell moves in absolute program coordinates."""
     tip = kin.to_program({j: builder.position(j) for j in machine.linear_axes})
+    vibration = vibration_of(job)
     if job.spindle_rpm > 0:
         builder.spindle(job.spindle_rpm)
     for i, move in enumerate(job.move):
@@ -60,12 +124,80 @@ def plan_move(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin:
         builder.event(start if kind == "rapid" else max(start, builder.spindle_ready), kind, move=i)
         if kind == "rapid":
             builder.rapid(axes)
-        else:
+        elif vibration is None:
             builder.linear(axes, move.feed)
+        else:
+            feed_move(builder, axes, move.feed / (job.spindle_rpm / TWO_PI), vibration, f"move[{i}]")
+
+
+def drill_cycle(job: SimpleNamespace, machine: Machine, kin: Kinematics) -> DrillCycle:
+    """The drill block in axis coordinates, checked against the travel (shared with analysis)."""
+    d = job.drill
+    if any(abs(a) > 1e-12 for a in job.setup.rotation_deg[:2]) and machine.layout == "mill3":
+        raise JobError("setup.rotation_deg", "a 3-axis mill drills along Z only: tilt needs a 5-axis machine")
+    holes = []
+    for i, (x, y) in enumerate(d.holes):
+        bottom = kin.to_axes({"x": x, "y": y, "z": d.surface_z - d.depth})
+        check_travel(machine, bottom, f"drill.holes[{i}]")
+        holes.append((bottom["x"], bottom["y"]))
+    z_of = lambda z: kin.to_axes({"z": z})["z"]  # noqa: E731  (Z is not rotated on a mill)
+    r_z = z_of(d.surface_z + d.r_gap)
+    check_travel(machine, {"z": r_z + RETURN_CLEARANCE}, "drill.r_gap")
+    return DrillCycle(holes=holes, surface_z=z_of(d.surface_z), bottom_z=z_of(d.surface_z - d.depth), r_z=r_z,
+                      feed=d.feed, overlap=d.overlap != "off", mode=None if d.mode == "auto" else d.mode,
+                      gentle_air_accel=d.gentle_air_accel)
+
+
+def plan_drill(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin: Kinematics) -> None:
+    """Overlapped (or conventional) drilling of a hole list, spindle at speed first."""
+    cycle = drill_cycle(job, machine, kin)
+    builder.spindle(job.spindle_rpm)
+    if builder.position("z") < cycle.r_z + RETURN_CLEARANCE:
+        builder.rapid({"z": cycle.r_z + RETURN_CLEARANCE})
+    builder.timelines["z"].add_hold(builder.end_time(), max(0.0, builder.spindle_ready - builder.end_time()))
+    try:
+        plan_drilling(builder, cycle)
+    except ValueError as err:
+        raise JobError("drill", str(err)) from err
+
+
+def plan_turn(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin: Kinematics) -> None:
+    """Roughing with short air moves: passes start where the stock really is."""
+    t = job.turn
+    stock = [tuple(p) for p in t.stock]
+    profile = [tuple(p) for p in t.profile]
+    try:
+        check_outlines(stock, profile)
+        rough = plan_roughing(stock, profile, t.depth_of_cut, t.clearance, tuple(t.origin),
+                              t.finish_allowance, t.finishing_pass)
+    except TurningError as err:
+        field, _, reason = str(err).partition(": ")
+        raise JobError(field, reason) from err
+    def axes_of(z: float, r: float) -> dict[str, float]:
+        return kin.to_axes({"x": r, "z": z})
+    origin = axes_of(*t.origin)
+    check_travel(machine, origin, "turn.origin")
+    builder.spindle(job.spindle_rpm)
+    builder.rapid(origin)
+    vibration = vibration_of(job)
+    passes = 0
+    for move in rough.moves:
+        target = axes_of(move.z, move.x)
+        check_travel(machine, target, "turn.profile")
+        start = builder.end_time()
+        if move.kind == "rapid":
+            builder.rapid(target)
+            continue
+        if move.cutting:
+            builder.event(max(start, builder.spindle_ready), "pass", index=passes)
+            passes += 1
+        feed_move(builder, target, t.feed, vibration if move.cutting else None, "turn")
 
 
 PLANNERS: dict[str, Callable[[SimpleNamespace, Machine, PlanBuilder, Kinematics], None]] = {
     "move": plan_move,
+    "drill": plan_drill,
+    "turn": plan_turn,
 }
 
 

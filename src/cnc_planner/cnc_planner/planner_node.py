@@ -55,14 +55,16 @@ class PlannerNode(Node):
         self.create_subscription(String, topics.JOB_CANCEL, self.on_cancel, qos.JOB_CANCEL)
         self.create_subscription(JointState, topics.JOINT_STATES, self.on_feedback, qos.LATEST)
         self.create_subscription(DiagnosticArray, topics.DIAGNOSTICS, self.on_diagnostics, qos.DIAGNOSTICS)
+        self.latest_feedback_ns = 0
         self.wall = Clock(clock_type=ClockType.STEADY_TIME)
         self.last_feedback_wall = self.wall.now()
         self.create_timer(0.1, self.watch_feedback, clock=self.wall)
-        self.create_timer(0.05, lambda: self.publish(self.executive.tick(self.now_ns())))
         self.get_logger().info(f"planning for machine '{machine.name}' joints {self.joints}")
 
     def now_ns(self) -> int:
-        return self.get_clock().now().nanoseconds
+        """The bridge's time, as its latest joint_states says: setpoints are scheduled on
+        the clock that executes them (sim or wall), never on a clock that may lag it."""
+        return self.latest_feedback_ns
 
     def publish(self, out: Output) -> None:
         for chunk in out.chunks:
@@ -78,8 +80,8 @@ class PlannerNode(Node):
         self.status_pub.publish(String(data=status.encode()))
 
     def on_goal(self, msg: String) -> None:
+        # Planning may take a while: the job starts on the next (fresh) feedback, not now.
         self.publish_status(self.executive.submit(msg.data))
-        self.publish(self.executive.tick(self.now_ns()))
 
     def on_cancel(self, msg: String) -> None:
         for status in self.executive.cancel(decode_cancel(msg.data), self.now_ns()):
@@ -89,8 +91,8 @@ class PlannerNode(Node):
     def on_feedback(self, msg: JointState) -> None:
         self.last_feedback_wall = self.wall.now()
         self.executive.feedback(dict(zip(msg.name, msg.position)))
-        stamp = msg.header.stamp.sec * NS + msg.header.stamp.nanosec
-        self.publish(self.executive.tick(stamp))
+        self.latest_feedback_ns = max(self.latest_feedback_ns, msg.header.stamp.sec * NS + msg.header.stamp.nanosec)
+        self.publish(self.executive.tick(self.latest_feedback_ns))
 
     def on_diagnostics(self, msg: DiagnosticArray) -> None:
         for status in msg.status:

@@ -1,32 +1,63 @@
-"""report.json from a recording alone: what cnc-run writes and cnc-analyze recomputes."""
+"""report.json from a recording alone: what cnc-run writes and cnc-analyze recomputes.
+
+The job document travels on job_goal and is recorded, so the method sections re-derive
+what they need (hole positions, R plane, stock) from it with the planner's own code and
+judge the recorded feedback (and, for comparison, the recorded commands).
+"""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
+from types import SimpleNamespace
 
-from cnc_msgs_py.machine import SPINDLE
+import numpy as np
+
+from cnc_msgs_py.job import parse_job
+from cnc_msgs_py.machine import SPINDLE, Machine, MachineError, load_machine
+from cnc_msgs_py.schema import JobError
+from cnc_msgs_py.units import to_mm
 from cnc_servo_bridge import analysis
+from cnc_servo_bridge.aircut import analyze_aircut
+from cnc_servo_bridge.drill_analysis import analyze_drilling
+from cnc_servo_bridge.drive import DriveModel
 from cnc_servo_bridge.recording import Run
+
+from .drilling import lower_bound_time
+from .jobs import drill_cycle, plan_job
+from .kinematics import Kinematics
+from .turning import max_gouge, plan_naive, plan_roughing
+
+FINAL = ("rejected", "succeeded", "aborted", "canceled")
 
 
 def final_status(run: Run, job_id: str | None = None) -> dict:
     """The last final status of the job (or of the last job in the run)."""
-    finals = [s for s in run.statuses if s["state"] in ("rejected", "succeeded", "aborted", "canceled")]
+    finals = [s for s in run.statuses if s["state"] in FINAL]
     if job_id is not None:
         finals = [s for s in finals if s["job_id"] == job_id]
     return finals[-1] if finals else {"job_id": job_id or "", "state": "unknown", "reason": "no final status recorded"}
 
 
+def _last_job(run: Run) -> tuple[str | None, SimpleNamespace | None]:
+    if not run.goals:
+        return None, None
+    try:
+        doc = json.loads(run.goals[-1])
+    except json.JSONDecodeError:
+        return None, None
+    job_id = doc.get("job_id") if isinstance(doc, dict) else None
+    try:
+        return job_id, parse_job(doc)
+    except JobError:
+        return job_id, None
+
+
 def build_report(run: Run) -> dict:
     """The figures of a run's last job, judged on feedback."""
-    job_id = None
-    if run.goals:
-        try:
-            job_id = json.loads(run.goals[-1]).get("job_id")
-        except (json.JSONDecodeError, AttributeError):
-            job_id = None
+    job_id, job = _last_job(run)
     status = final_status(run, job_id)
     axes = tuple(j for j in run.joints if j != SPINDLE)
-    return {
+    report = {
         "job_id": status["job_id"],
         "state": status["state"],
         "reason": status.get("reason", ""),
@@ -38,4 +69,105 @@ def build_report(run: Run) -> dict:
         "chunks_lost": analysis.chunks_lost(run),
         "feedback_samples": int(len(run.feedback_t)),
         "alarms": sorted(set(run.alarms)),
+    }
+    if job is None or status["state"] == "rejected" or len(run.feedback_t) == 0:
+        return report
+    try:
+        machine = load_machine(job.machine)
+    except MachineError:
+        return report
+    window = _job_window(run, status["job_id"])
+    if job.kind == "drill":
+        report["drill"] = drill_section(run, job, machine, window)
+    if job.kind == "turn":
+        report["turn"] = turn_section(run, job, machine, window)
+    if job.vibration is not None:
+        report["aircut"] = aircut_section(run)
+    return report
+
+
+def _job_window(run: Run, job_id: str) -> np.ndarray:
+    """Feedback samples from the job's first setpoint to the end of the recording."""
+    starts = [e["stamp_ns"] for e in run.events if e.get("job_id") == job_id]
+    t0 = (min(starts) / 1e9) if starts else run.feedback_t[0]
+    return run.feedback_t >= t0 - 1e-9
+
+
+def simulated_feedback(plan, machine: Machine, period: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
+    """What the bridge's drives would report for a plan, offline (same drive model)."""
+    t = np.arange(int(np.ceil(plan.duration / period)) + 1) * period
+    p, v, a = plan.sample(t)
+    fb, _ = DriveModel(machine, period, plan.joints).simulate(p, v, a)
+    return t, fb
+
+
+def drill_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray) -> dict:
+    kin = Kinematics(machine, job.setup, job.tool)
+    cycle = drill_cycle(job, machine, kin)
+    t = run.feedback_t[window]
+    fb = run.feedback[window]
+    col = run.column
+    result = analyze_drilling(t, fb[:, col("x")], fb[:, col("y")], fb[:, col("z")],
+                              cycle.holes, cycle.r_z, cycle.xy_tolerance, cycle.surface_z)
+    modes = {e["hole"]: e["mode"] for e in run.events if e.get("name") == "S1"}
+    for hole in result["holes"]:
+        hole["mode"] = modes.get(hole["index"])
+    start = {j: float(run.feedback[window][0, col(j)]) for j in run.joints}
+    conventional = SimpleNamespace(**{**vars(job), "drill": SimpleNamespace(**{**vars(job.drill), "overlap": "off"})})
+    conv_plan = plan_job(conventional, machine, start)
+    ct, cfb = simulated_feedback(conv_plan, machine)
+    conv = analyze_drilling(ct, cfb[:, 0], cfb[:, 1], cfb[:, 2], cycle.holes, cycle.r_z, cycle.xy_tolerance,
+                            cycle.surface_z)
+    result["conventional_cycle_time_s"] = conv["cycle_time_s"]
+    result["lower_bound_s"] = lower_bound_time(machine, cycle, (start["x"], start["y"]))
+    return result
+
+
+def turn_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray) -> dict:
+    t = job.turn
+    args = dict(stock=[tuple(p) for p in t.stock], profile=[tuple(p) for p in t.profile],
+                depth_of_cut=t.depth_of_cut, clearance=t.clearance, origin=tuple(t.origin),
+                finish_allowance=t.finish_allowance)
+    ours = plan_roughing(**args, finishing_pass=t.finishing_pass)
+    naive = plan_naive(**args, finishing_pass=t.finishing_pass)
+    kin = Kinematics(machine, job.setup, job.tool)
+    fb = run.feedback[window]
+    tips = [kin.to_program({"x": x, "z": z}) for x, z in fb[:, [run.column("x"), run.column("z")]]]
+    tip_zx = np.array([[p["z"], p["x"]] for p in tips])
+    return {
+        **ours.to_dict(),
+        "naive_path_mm": to_mm(naive.path_length),
+        "naive_air_feed_mm": to_mm(naive.air_feed_length),
+        "path_feedback_mm": to_mm(float(np.sum(np.linalg.norm(np.diff(tip_zx, axis=0), axis=1)))),
+        "max_gouge_mm": to_mm(max_gouge(tip_zx, args["profile"], t.finish_allowance)),
+        "cycle_time_s": analysis.cycle_time(run, ("x", "z")),
+    }
+
+
+def aircut_section(run: Run) -> dict:
+    """Air-cuts of every vibrating feed, on the commands and on the feedback."""
+    starts = [e for e in run.events if e.get("name") == "vibration_feed"]
+    ends = [e["stamp_ns"] / 1e9 for e in run.events if e.get("name") == "vibration_end"]
+    out = {}
+    for source, times, positions in (("commanded", run.command_t, run.command),
+                                     ("feedback", run.feedback_t, run.feedback)):
+        totals = {"revolutions": 0, "revolutions_with_aircut": 0, "max_chip_revs": 0.0}
+        for start, end in zip(starts, ends):
+            inside = (times >= start["stamp_ns"] / 1e9) & (times <= end)
+            spindle = positions[inside, run.column(SPINDLE)]
+            if len(spindle) < 2 or abs(spindle[-1] - spindle[0]) < 2 * np.pi:
+                continue  # not even one revolution recorded: nothing to judge
+            cols = [run.column(j) for j in start["joints"]]
+            progress = (positions[inside][:, cols] - np.array(start["start"])) @ np.array(start["direction"])
+            report = analyze_aircut(spindle, progress).to_dict()
+            totals["revolutions"] += report["revolutions"]
+            totals["revolutions_with_aircut"] += report["revolutions_with_aircut"]
+            totals["max_chip_revs"] = max(totals["max_chip_revs"], report["max_chip_revs"])
+        out[source] = totals
+    return {
+        "revolutions": out["feedback"]["revolutions"],
+        "revolutions_with_aircut": out["feedback"]["revolutions_with_aircut"],
+        "max_chip_revs": out["feedback"]["max_chip_revs"],
+        "commanded": out["commanded"],
+        "feedback": out["feedback"],
     }

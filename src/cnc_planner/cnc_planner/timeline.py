@@ -51,6 +51,10 @@ class JointTimeline:
         return self.pieces[-1].end if self.pieces else 0.0
 
     @property
+    def start_position(self) -> float:
+        return self._coast[0][1]
+
+    @property
     def end_position(self) -> float:
         return self._coast[-1][1]
 
@@ -115,6 +119,9 @@ class Plan:
         """Setpoints at sorted plan times ts: three arrays of shape (len(ts), joints)."""
         out = [self.timelines[j].sample(ts) for j in self.joints]
         return tuple(np.stack([o[k] for o in out], axis=1) for k in range(3))  # type: ignore[return-value]
+
+    def start_position(self) -> dict[str, float]:
+        return {j: self.timelines[j].start_position for j in self.joints}
 
     def final_position(self) -> dict[str, float]:
         return {j: self.timelines[j].position_at(self.duration) for j in self.joints}

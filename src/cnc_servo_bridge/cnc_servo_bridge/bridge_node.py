@@ -122,7 +122,8 @@ class BridgeNode(Node):
     def publish_diagnostics(self) -> None:
         alarm = self.loop.alarm or self.rejected
         status = DiagnosticStatus(
-            level=DiagnosticStatus.ERROR if self.loop.alarm else (DiagnosticStatus.WARN if alarm else DiagnosticStatus.OK),
+            # Refused setpoints are an error too: the trajectory they belonged to cannot run.
+            level=DiagnosticStatus.ERROR if alarm else DiagnosticStatus.OK,
             name="cnc_servo_bridge: drives", hardware_id=self.get_namespace(),
             message=alarm or "ok",
             values=[KeyValue(key="buffer_s", value=f"{self.loop.buffer.level_s(self.t_ns):.3f}")]

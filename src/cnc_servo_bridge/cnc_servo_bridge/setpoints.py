@@ -21,6 +21,8 @@ from cnc_msgs_py.machine import Machine
 LIMIT_TOLERANCE = 0.05
 TRAVEL_TOLERANCE = 1e-6
 REST_VELOCITY = 1e-9
+START_TOLERANCE = 1e-5  # m or rad: where a trajectory from rest may begin, off the held reference
+START_VELOCITY = 1e-6
 
 
 class SetpointError(ValueError):
@@ -96,6 +98,15 @@ class SetpointBuffer:
         if len(bad):
             raise SetpointError(f"{self.joints[bad[0][1]]} acceleration {a[tuple(bad[0])]:.3f} beyond its limit")
         prev_t, prev_p, prev_v = self._state_before(int(times_ns[0]), now_ns, reference)
+        if np.all(np.abs(prev_v) <= REST_VELOCITY):
+            # Starting from rest (a new trajectory): like joint_trajectory_controller's
+            # start-state tolerance, the first point must be where the axes stand, at rest.
+            off = np.abs(p[0] - prev_p) > START_TOLERANCE
+            moving = np.abs(v[0]) > START_VELOCITY
+            if off.any() or moving.any():
+                j = int(np.argmax(off | moving))
+                raise SetpointError(f"{self.joints[j]}: a trajectory from rest must start at rest at "
+                                    f"{prev_p[j]:.6f}, got {p[0, j]:.6f} moving {v[0, j]:.4f}")
         dt = np.diff(np.concatenate(([prev_t], times_ns))) / 1e9
         steps = np.abs(np.diff(np.vstack([prev_p, p]), axis=0))
         reach = self.v_max * dt[:, None] + 1e-9
@@ -115,6 +126,9 @@ class SetpointBuffer:
                 k = int(np.searchsorted(chunk.times_ns, stamp_ns, side="left")) - 1
                 if k >= 0:
                     return int(chunk.times_ns[k]), chunk.positions[k], chunk.velocities[k]
+            # It starts at or before the first buffered point: it replaces the whole
+            # buffer and continues from what the drives follow now.
+            return now_ns, reference[0], reference[1]
         if self.chunks:
             last = self.chunks[-1]
             return int(last.times_ns[-1]), last.positions[-1], last.velocities[-1]

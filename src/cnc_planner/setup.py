@@ -1,11 +1,17 @@
 """ament_python package cnc_planner: installs with colcon (ROS) or pip (plain venv)."""
+import os
 from glob import glob
 from pathlib import Path
 
 from setuptools import find_packages, setup
 
 PACKAGE = "cnc_planner"
-ROOT = Path(__file__).resolve().parents[2]  # the workspace: config/ lives there
+HERE = Path(__file__).resolve().parent
+
+
+def config(pattern: str) -> list[str]:
+    """Files of the workspace's config/ (shared by the packages), relative to this package."""
+    return sorted(os.path.relpath(f, HERE) for f in glob(str(HERE.parents[1] / "config" / pattern)))
 
 setup(
     name=PACKAGE,
@@ -14,8 +20,8 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
-        (f"share/{PACKAGE}/config", glob(str(ROOT / "config/planner.yaml"))),
-        (f"share/{PACKAGE}/config/jobs", glob(str(ROOT / "config/jobs/*.yaml"))),
+        (f"share/{PACKAGE}/config", config("planner.yaml")),
+        (f"share/{PACKAGE}/config/jobs", config("jobs/*.yaml")),
     ],
     install_requires=["setuptools"],
     zip_safe=True,

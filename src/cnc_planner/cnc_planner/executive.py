@@ -22,6 +22,7 @@ from .streaming import NS, Chunk, SetpointStream
 from .timeline import Event, Plan
 
 START_MATCH = 1e-6  # m: a plan made from another position than the axes hold is redone
+REST_SPEED = 1e-6  # m/s or rad/s: feedback this slow counts as standing still
 
 
 @dataclass
@@ -29,9 +30,10 @@ class Settings:
     period_ns: int = 1_000_000  # interpolation period
     chunk_points: int = 100
     lookahead_ns: int = 500_000_000  # how far setpoints run ahead of the feedback
-    start_delay_ns: int = 100_000_000  # from the feedback that starts a job to its first setpoint
+    start_delay_ns: int = 200_000_000  # from the feedback that starts a job to its first setpoint
     status_period_ns: int = 500_000_000  # progress updates on job_status
-    cancel_latency_ns: int = 10_000_000  # a stop starts this far after the request
+    cancel_latency_ns: int = 50_000_000  # a stop starts this far after the request: beyond
+    # what the bridge may already have executed when the stop reaches it
 
 
 @dataclass
@@ -108,13 +110,12 @@ class Executive:
         if job.stream is not None:
             job.stream.stop_from(max(now_ns + self.settings.cancel_latency_ns, job.stream.start_ns), self.machine)
 
-    def feedback(self, positions: dict[str, float]) -> None:
-        """Current joint positions (from joint_states) while idle: where plans start.
-
-        With jobs queued, only an unknown position (none yet, or after an abort) is
-        taken: otherwise queued jobs would wait for it forever.
-        """
-        if self.active is None and (not self.queue or self.position is None):
+    def feedback(self, positions: dict[str, float], velocities: dict[str, float] | None = None) -> None:
+        """Joint states from the bridge. Plans start from the last commanded position;
+        only when that is unknown (start-up, or the bridge stopped on its own) do they
+        start from the feedback, once the axes stand still (velocities, if given)."""
+        standing = velocities is None or all(abs(v) < REST_SPEED for v in velocities.values())
+        if self.position is None and self.active is None and standing:
             self.position = positions
 
     def tick(self, now_ns: int) -> Output:

@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from ruckig import InputParameter, Result, Ruckig, Trajectory
+from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
 from cnc_msgs_py.machine import Axis
 from cnc_servo_bridge.stop import velocity_trajectory
@@ -83,7 +83,10 @@ def calculate(inp: InputParameter) -> Trajectory:
         MotionError: ruckig found no trajectory.
     """
     trajectory = Trajectory(inp.degrees_of_freedom)
-    result = Ruckig(inp.degrees_of_freedom).calculate(inp, trajectory)
+    try:
+        result = Ruckig(inp.degrees_of_freedom).calculate(inp, trajectory)
+    except RuckigError as err:  # invalid input is raised, not returned
+        raise MotionError(f"ruckig could not plan the move: {str(err).strip()}") from err
     if result not in (Result.Working, Result.Finished):
         raise MotionError(f"ruckig could not plan the move ({result.name})")
     return trajectory

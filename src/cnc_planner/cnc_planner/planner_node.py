@@ -90,8 +90,10 @@ class PlannerNode(Node):
 
     def on_feedback(self, msg: JointState) -> None:
         self.last_feedback_wall = self.wall.now()
-        self.executive.feedback(dict(zip(msg.name, msg.position)))
+        self.executive.feedback(dict(zip(msg.name, msg.position)), dict(zip(msg.name, msg.velocity)))
         self.latest_feedback_ns = max(self.latest_feedback_ns, msg.header.stamp.sec * NS + msg.header.stamp.nanosec)
+        if self.trajectory_pub.get_subscription_count() == 0:
+            return  # no bridge listening (yet): setpoints would be lost, so nothing starts
         self.publish(self.executive.tick(self.latest_feedback_ns))
 
     def on_diagnostics(self, msg: DiagnosticArray) -> None:

@@ -45,7 +45,8 @@ class BridgeNode(Node):
         clock_rate = self.declare_parameter("clock_rate", 100.0).value
         self.clock_every = max(1, round(NS / clock_rate / self.period_ns))
         self.underrun_timeout = self.declare_parameter("underrun_timeout", 1.0).value
-        self.max_steps = self.declare_parameter("steps_per_callback", 200).value
+        # Few steps per callback so that setpoint chunks (a stop!) are taken between batches.
+        self.max_steps = self.declare_parameter("steps_per_callback", 10).value
         start = self.declare_parameter("start_position", [0.0] * len(machine.joint_names)).value
         self.loop = ServoLoop(machine, self.period_ns, np.asarray(start, dtype=float))
         self.joints = list(machine.joint_names)

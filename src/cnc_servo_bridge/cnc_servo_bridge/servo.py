@@ -93,7 +93,9 @@ class ServoLoop:
         if sample is not None:
             return tuple(np.array(x, dtype=float) for x in sample)
         if not self.at_rest:
-            self._raise(t_ns, "setpoint buffer ran dry while moving: holding")
+            # The stop starts from the last reference, one period ago, not from now:
+            # otherwise the axes would stand still for a period while moving.
+            self._raise(t_ns - self.period_ns, "setpoint buffer ran dry while moving: holding")
             return self._reference_at(t_ns)
         p = self.reference[0]
         return p, np.zeros_like(p), np.zeros_like(p)

@@ -114,10 +114,18 @@ class SetpointBuffer:
         if len(bad):
             i, j = bad[0]
             raise SetpointError(f"{self.joints[j]} jumps {steps[i, j]:.6f} in {dt[i] * 1e3:.3f} ms")
-        if times_ns[0] - prev_t > 1.5 * (times_ns[1] - times_ns[0] if len(times_ns) > 1 else 0) and np.any(np.abs(prev_v) > REST_VELOCITY):
+        spacing = times_ns[1] - times_ns[0] if len(times_ns) > 1 else self._spacing()
+        if times_ns[0] - prev_t > 1.5 * spacing and np.any(np.abs(prev_v) > REST_VELOCITY):
             gap = (times_ns[0] - prev_t) / 1e6
             raise SetpointError(f"chunk leaves a gap of {gap:.3f} ms after a moving setpoint")
         return Setpoints(np.asarray(times_ns, dtype=np.int64), p, v, a)
+
+    def _spacing(self) -> int:
+        """Point spacing of the buffer, for a one-point chunk (which has none of its own)."""
+        for chunk in reversed(self.chunks):
+            if len(chunk.times_ns) > 1:
+                return int(chunk.times_ns[1] - chunk.times_ns[0])
+        return 0
 
     def _state_before(self, stamp_ns: int, now_ns: int, reference):
         """The reference just before a chunk's first stamp, to check it continues smoothly."""

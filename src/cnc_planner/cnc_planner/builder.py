@@ -12,8 +12,9 @@ from .timeline import Event, JointTimeline, Piece, Plan
 class PlanBuilder:
     """Appends jerk-limited moves to per-joint timelines and records phase events.
 
-    Moves start, by default, when every joint they involve has finished its previous
-    piece; pass ``start`` to overlap a move with motion of other joints.
+    Moves start, by default, when every axis has finished its previous piece (a program
+    runs its moves in sequence); pass ``start`` to overlap a move with the motion of
+    other axes on purpose, as overlapped drilling does.
     """
 
     def __init__(self, machine: Machine, start_position: dict[str, float] | None = None):
@@ -42,9 +43,9 @@ class PlanBuilder:
     def rapid(self, target: dict[str, float], start: float | None = None) -> float:
         """Time-optimal positioning of the named axes (rest to rest); returns the end time."""
         joints = [j for j in target if abs(target[j] - self.position(j)) > 1e-12]
+        begin = self.end_time() if start is None else start
         if not joints:
-            return self.end_time(list(target)) if start is None else start
-        begin = self.end_time(joints) if start is None else start
+            return begin
         move = point_to_point(
             [self.position(j) for j in joints],
             [target[j] for j in joints],
@@ -68,9 +69,9 @@ class PlanBuilder:
         joints = list(target)
         p0 = np.array([self.position(j) for j in joints])
         p1 = np.array([target[j] for j in joints])
+        begin = max(self.end_time(), self.spindle_ready) if start is None else start
         if np.linalg.norm(p1 - p0) <= 1e-12:
-            return self.end_time(joints) if start is None else start
-        begin = max(self.end_time(joints), self.spindle_ready) if start is None else start
+            return begin
         move = LinearMove(p0, p1, [axis_limits(self.machine.axes[j]) for j in joints], feed)
         return self._add(joints, begin, move, list(p1))
 

@@ -22,7 +22,7 @@ from .builder import PlanBuilder
 from .drilling import RETURN_CLEARANCE, DrillCycle, plan_drilling
 from .kinematics import Kinematics
 from .motion import axis_limits, path_limits
-from .timeline import Piece, Plan
+from .timeline import Event, Piece, Plan
 from .turning import TurningError, check_outlines, plan_roughing
 from .vibration import Vibration, VibrationError, VibrationFeed
 
@@ -71,14 +71,14 @@ def feed_move(builder: PlanBuilder, target: dict[str, float], feed_per_rev: floa
     p0 = np.array([builder.position(j) for j in joints])
     delta = np.array([target[j] for j in joints]) - p0
     length = float(np.linalg.norm(delta))
+    start = max(builder.end_time(), builder.spindle_ready)
     if length <= 1e-12:
-        return builder.end_time(joints)
+        return start
     direction = delta / length
     lim = path_limits(direction, [axis_limits(machine.axes[j]) for j in joints], None)
     along = replace(machine.axes[joints[0]], max_velocity=lim.velocity,
                     max_acceleration=lim.acceleration, max_jerk=lim.jerk)
     lead = joints[int(np.argmax(np.abs(direction)))]
-    start = max(builder.end_time(joints), builder.spindle_ready)
     try:
         move = VibrationFeed(length, feed_per_rev, vibration, abs(speed), along,
                              start_angle=builder.timelines[SPINDLE].position_at(start),
@@ -215,5 +215,8 @@ def plan_job(job: SimpleNamespace, machine: Machine, start_position: dict[str, f
     if job.spindle_rpm > machine.axes[SPINDLE].max_velocity:
         raise JobError("spindle_rpm", f"exceeds the spindle's {to_rpm(machine.axes[SPINDLE].max_velocity):.0f} rpm")
     builder = PlanBuilder(machine, start_position)
+    builder.event(0.0, "job_start", kind=job.kind)
     planner(job, machine, builder, Kinematics(machine, job.setup, job.tool))
-    return builder.build()
+    plan = builder.build()
+    plan.events.append(Event(plan.duration, "job_end"))
+    return plan

@@ -88,8 +88,8 @@ def build_report(run: Run) -> dict:
 
 def _job_window(run: Run, job_id: str) -> np.ndarray:
     """Feedback samples from the job's first setpoint to the end of the recording."""
-    starts = [e["stamp_ns"] for e in run.events if e.get("job_id") == job_id]
-    t0 = (min(starts) / 1e9) if starts else run.feedback_t[0]
+    starts = [e["stamp_ns"] for e in run.events if e.get("job_id") == job_id and e["name"] == "job_start"]
+    t0 = (starts[-1] / 1e9) if starts else run.feedback_t[0]
     return run.feedback_t >= t0 - 1e-9
 
 
@@ -131,15 +131,21 @@ def turn_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.nd
     ours = plan_roughing(**args, finishing_pass=t.finishing_pass)
     naive = plan_naive(**args, finishing_pass=t.finishing_pass)
     kin = Kinematics(machine, job.setup, job.tool)
-    fb = run.feedback[window]
-    tips = [kin.to_program({"x": x, "z": z}) for x, z in fb[:, [run.column("x"), run.column("z")]]]
-    tip_zx = np.array([[p["z"], p["x"]] for p in tips])
+    def tips(positions: np.ndarray) -> np.ndarray:
+        points = [kin.to_program({"x": x, "z": z}) for x, z in positions[:, [run.column("x"), run.column("z")]]]
+        return np.array([[p["z"], p["x"]] for p in points])
+
+    tip_zx = tips(run.feedback[window])
+    commanded = tips(run.command[run.command_t >= run.feedback_t[window][0]])
     return {
         **ours.to_dict(),
         "naive_path_mm": to_mm(naive.path_length),
         "naive_air_feed_mm": to_mm(naive.air_feed_length),
         "path_feedback_mm": to_mm(float(np.sum(np.linalg.norm(np.diff(tip_zx, axis=0), axis=1)))),
+        # How far the tip went into the finishing allowance, and into the part itself.
         "max_gouge_mm": to_mm(max_gouge(tip_zx, args["profile"], t.finish_allowance)),
+        "max_gouge_part_mm": to_mm(max_gouge(tip_zx, args["profile"], 0.0)),
+        "max_gouge_commanded_mm": to_mm(max_gouge(commanded, args["profile"], t.finish_allowance)),
         "cycle_time_s": analysis.cycle_time(run, ("x", "z")),
     }
 

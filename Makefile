@@ -6,7 +6,7 @@ VENV    ?= .venv
 PYTHON  ?= python3
 PY      := $(VENV)/bin/python
 STAMP   := $(VENV)/.installed
-DEMO_JOB ?= config/jobs/move_mill3.yaml
+DEMO_JOB ?= config/jobs/drill_row.yaml
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 
 .PHONY: setup demo test bench clean

@@ -25,8 +25,9 @@ def test_cancel_mid_move_stops_smoothly_and_next_job_runs(tmp_path):
         session.cancel("long")
         assert session.wait("long", 60)["state"] == "canceled"
         session.submit(job_text("after", 20.0))
-        assert session.wait("after", 60)["state"] == "succeeded"
-        session.settle()
+        final = session.wait("after", 60)
+        assert final["state"] == "succeeded"
+        session.settle(final)
     run = read_run(tmp_path / "bag")
     x = run.column("x")
     v = run.command_velocity[:, x]

@@ -50,3 +50,23 @@ def test_roughing_starts_passes_on_the_stock_without_gouging(tmp_path):
     assert turn["max_gouge_part_mm"] < 0.01
     assert turn["air_feed_mm"] < 0.1 * turn["naive_air_feed_mm"]
     assert turn["path_mm"] < turn["naive_path_mm"]
+
+
+def test_thread_with_vibration_breaks_chips_on_every_pass_on_feedback(tmp_path):
+    report = run_and_reanalyse("thread_m12.yaml", tmp_path / "thread")
+    thread = report["thread"]
+    assert thread["synchronised_passes"] == 7  # 6 cutting passes + 1 spring pass
+    for p in thread["passes"]:
+        if p["doc_mm"] > 0.05:
+            assert p["max_chip_revs"] <= 1.0
+    assert thread["full_depth"] and abs(thread["depth_error_mm"]) <= 0.02
+    assert thread["overcut_mm"] <= 0.02
+    assert thread["helix_residual_mm"] < 0.01
+    assert thread["doc_never_grows"]
+
+
+def test_conventional_thread_is_correct_but_its_chips_are_long(tmp_path):
+    report = run_and_reanalyse("thread_m12_conventional.yaml", tmp_path / "g76")
+    thread = report["thread"]
+    assert thread["full_depth"] and thread["helix_residual_mm"] < 0.01
+    assert thread["max_chip_revs"] > 5.0

@@ -22,6 +22,7 @@ class Status:
     duration_s: float = 0.0
     cycle_time_s: float | None = None
     detail: dict = field(default_factory=dict)
+    stamp_ns: int = 0  # the machine's (bridge's) time when the status was issued
     schema: str = STATUS_SCHEMA
 
     @property

@@ -23,6 +23,7 @@ from .drilling import RETURN_CLEARANCE, DrillCycle, plan_drilling
 from .kinematics import Kinematics
 from .motion import axis_limits, path_limits
 from .timeline import Event, Piece, Plan
+from .thread_cutting import ThreadError, ThreadSpec, check_thread, plan_thread
 from .turning import TurningError, check_outlines, plan_roughing
 from .vibration import Vibration, VibrationError, VibrationFeed
 
@@ -194,10 +195,22 @@ def plan_turn(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin:
         feed_move(builder, target, t.feed, vibration if move.cutting else None, "turn")
 
 
+def plan_thread_job(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin: Kinematics) -> None:
+    """Multi-pass thread on the lathe, with vibration along the infeed if given."""
+    try:
+        spec = ThreadSpec.from_job(job)
+        check_thread(spec, machine)
+    except ThreadError as err:
+        field, _, reason = str(err).partition(": ")
+        raise JobError(field, reason) from err
+    plan_thread(builder, spec)
+
+
 PLANNERS: dict[str, Callable[[SimpleNamespace, Machine, PlanBuilder, Kinematics], None]] = {
     "move": plan_move,
     "drill": plan_drill,
     "turn": plan_turn,
+    "thread": plan_thread_job,
 }
 
 

@@ -75,6 +75,7 @@ class PlannerNode(Node):
             self.publish_status(status)
 
     def publish_status(self, status: Status) -> None:
+        status.stamp_ns = self.latest_feedback_ns
         if status.state in ("rejected", "aborted", "canceled"):
             self.get_logger().warning(f"job '{status.job_id}' {status.state}: {status.reason}")
         self.status_pub.publish(String(data=status.encode()))

@@ -21,6 +21,7 @@ from cnc_servo_bridge.aircut import analyze_aircut
 from cnc_servo_bridge.drill_analysis import analyze_drilling
 from cnc_servo_bridge.drive import DriveModel
 from cnc_servo_bridge.recording import Run
+from cnc_servo_bridge.thread_analysis import analyze_thread
 
 from .drilling import lower_bound_time
 from .jobs import drill_cycle, plan_job
@@ -81,7 +82,9 @@ def build_report(run: Run) -> dict:
         report["drill"] = drill_section(run, job, machine, window)
     if job.kind == "turn":
         report["turn"] = turn_section(run, job, machine, window)
-    if job.vibration is not None:
+    if job.kind == "thread":
+        report["thread"] = thread_section(run, window)
+    elif job.vibration is not None:
         report["aircut"] = aircut_section(run)
     return report
 
@@ -148,6 +151,16 @@ def turn_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.nd
         "max_gouge_commanded_mm": to_mm(max_gouge(commanded, args["profile"], t.finish_allowance)),
         "cycle_time_s": analysis.cycle_time(run, ("x", "z")),
     }
+
+
+def thread_section(run: Run, window: np.ndarray) -> dict:
+    """Passes, chips, depth and helix accuracy of a thread, on feedback and on commands."""
+    thread = json.loads(run.goals[-1])["thread"]
+    cols = [run.column(j) for j in ("x", "z", SPINDLE)]
+    feedback = analyze_thread(run.feedback_t[window], *run.feedback[window][:, cols].T, thread)
+    inside = run.command_t >= run.feedback_t[window][0]
+    commanded = analyze_thread(run.command_t[inside], *run.command[inside][:, cols].T, thread)
+    return {**feedback, "commanded": {k: commanded[k] for k in ("max_chip_revs", "helix_residual_mm", "depth_error_mm")}}
 
 
 def aircut_section(run: Run) -> dict:

@@ -143,10 +143,11 @@ class Session:
                         f"job '{job_id}' did not end within {timeout:.0f} s")
         return self.final_status(job_id)
 
-    def settle(self, seconds: float = SETTLE_S) -> None:
-        """Record a little more sim time so the drives' settling shows in the bag."""
-        end = self.recorder.sim_ns + int(seconds * 1e9)
-        self.spin_until(lambda: self.recorder.sim_ns >= end, 10.0, "the bridge stopped publishing")
+    def settle(self, status: dict, seconds: float = SETTLE_S) -> None:
+        """Record until a little after a final status: the recorder may still be working
+        through queued feedback, and the drives' settling should show in the bag."""
+        end = max(status.get("stamp_ns", 0), self.recorder.sim_ns) + int(seconds * 1e9)
+        self.spin_until(lambda: self.recorder.sim_ns >= end, 60.0, "the bridge stopped publishing")
 
     def spin_until(self, done: Callable[[], bool], timeout: float, what: str) -> None:
         deadline = time.monotonic() + timeout
@@ -189,5 +190,5 @@ def run_job(text: str, job_id: str, machine: str, bag_dir: Path, *, timeout: flo
         session.submit(text)
         status = session.wait(job_id, timeout)
         if status["state"] != "rejected":
-            session.settle()
+            session.settle(status)
         return status

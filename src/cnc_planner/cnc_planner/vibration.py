@@ -102,8 +102,9 @@ def _require_positive(field: str, value: object) -> None:
         raise VibrationError(f"{field}: must be > 0, got {value:g}")
 
 
-def _wave(u: np.ndarray, r: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """w(u) and its first three derivatives per cycle; r = retreat fraction of a cycle."""
+def waveform(u: np.ndarray, r: float = 0.5) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """w(u) in [0, 1] and its first three derivatives per cycle; r = retreat fraction of a
+    cycle. Unitless, so any axis or direction can scale it by its own amplitude."""
     x = np.mod(u, 1.0)
     retreat = x >= 1.0 - r
     m_fwd, m_ret = 0.5 / (1.0 - r), 0.5 / r
@@ -132,12 +133,12 @@ def _min_q(vib: Vibration) -> float:
     of m revolutions ago stood at least m*F/(Q*F) further ahead: Q > m / max(w(u - mD) - w(u)).
     """
     u = np.arange(PHASE_SAMPLES) / PHASE_SAMPLES
-    w = _wave(u, vib._retreat_fraction)[0]
+    w = waveform(u, vib._retreat_fraction)[0]
     best = math.inf
     for m in range(1, MAX_EARLIER_REVS + 1):
         if m >= best:
             break
-        gain = np.max(_wave(u - m * vib.vibrations_per_rev, vib._retreat_fraction)[0] - w)
+        gain = np.max(waveform(u - m * vib.vibrations_per_rev, vib._retreat_fraction)[0] - w)
         if gain > 1e-9:
             best = min(best, m / gain)
     return best
@@ -152,7 +153,7 @@ def _speed_limits(
     so each limit gives a spindle speed at which the waveform just touches it.
     """
     u = np.arange(PHASE_SAMPLES) / PHASE_SAMPLES
-    _, w1, w2, w3 = _wave(u, vib._retreat_fraction)
+    _, w1, w2, w3 = waveform(u, vib._retreat_fraction)
     d, amp = vib.vibrations_per_rev, vib.Q * feed_per_rev
     # progress per radian of spindle, and its derivatives: velocity = omega * that, etc.
     per_rad = [
@@ -312,7 +313,7 @@ class VibrationFeed:
         d = self._vib.vibrations_per_rev
         theta = self._start_angle + self._omega * t
         rate = d * self._omega / TWO_PI  # vibration cycles per second
-        w, w1, w2, _ = _wave(d * theta / TWO_PI, self._vib._retreat_fraction)
+        w, w1, w2, _ = waveform(d * theta / TWO_PI, self._vib._retreat_fraction)
         amp = self._vib.Q * self._f
         s = self._f * (theta - self._feed_origin) / TWO_PI + amp * w
         v = self._f * self._omega / TWO_PI + amp * rate * w1
@@ -345,7 +346,7 @@ class VibrationFeed:
         f, amp = self._f, self._vib.Q * self._f
         u = np.arange(PHASE_SAMPLES + 1) / PHASE_SAMPLES
         # furthest the tool gets ahead of a cycle's return point
-        reach = float(np.max(f * u / d + amp * _wave(u, self._vib._retreat_fraction)[0]))
+        reach = float(np.max(f * u / d + amp * waveform(u, self._vib._retreat_fraction)[0]))
         # the first cycle (from return point B_k) that can reach length
         k = math.ceil(d * ((self._length - reach) * TWO_PI / f + self._feed_origin) / TWO_PI)
         t_reach = k * TWO_PI / (d * self._omega) - self._start_angle / self._omega
@@ -387,24 +388,9 @@ class VibrationFeed:
         n = math.ceil((self._t_end + COMPENSATION_TAIL) / self._period) + 1
         t = np.arange(n) * self._period
         s, v, a = self._ideal(t)
-        inverse = _inverse_response(drive, 2 * n)  # zero padding: no wrap-around
-        correction = np.zeros(n)
-        best, best_error = correction, math.inf
-        for _ in range(COMPENSATION_PASSES):
-            dv, da = _derivatives(correction, self._period)
-            command = (s + correction)[:, None], (v + dv)[:, None], (a + da)[:, None]
-            feedback = drive.simulate(*command)[0][:, 0]
-            error = s - feedback
-            if np.max(np.abs(error)) < best_error:
-                best, best_error = correction, np.max(np.abs(error))
-            correction = correction + np.fft.irfft(np.fft.rfft(error, 2 * n) * inverse, 2 * n)[:n]
-            correction[: LEAD_PERIODS // 2] = 0.0  # starts at rest; leads by half the rest at most
-        unsettled = np.flatnonzero(np.abs(best) > SETTLED)
-        last = max(round(self._duration / self._period), unsettled[-1] + 1 if unsettled.size else 0)
-        best = best[: last + 1].copy()
-        best[-1] = 0.0
-        self._correction = np.stack([best, *_derivatives(best, self._period)])
-        self._duration = last * self._period
+        best = learn_correction(drive, s[:, None], v[:, None], a[:, None], LEAD_PERIODS // 2)
+        self._correction = settled(best, round(self._duration / self._period), self._period)[:, :, 0]
+        self._duration = (self._correction.shape[1] - 1) * self._period
 
     def sample(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Progress s (m), ds/dt and d2s/dt2 at local times t (s, an array); the command if
@@ -419,15 +405,60 @@ class VibrationFeed:
         return s, v, a
 
 
+def learn_correction(
+    drive: DriveModel, p: np.ndarray, v: np.ndarray, a: np.ndarray, fixed: int,
+    band: tuple[float, float] = INVERSE_BAND,
+) -> np.ndarray:
+    """Command correction (n, joints) that makes the drive's simulated feedback follow the
+    reference p (with its derivatives v, a), sampled every servo period, at rest at both ends.
+
+    A few iterative-learning passes against DriveModel.simulate with the exact inverse of
+    the drive's linear part as learning operator (see VibrationFeed); the first `fixed`
+    samples stay uncorrected, so the command starts at rest where the reference does;
+    `band` (shares of the servo rate) is where the inverse fades out: nothing above it is
+    corrected, encoder quantisation included. Returns the best correction seen.
+    """
+    n = p.shape[0]
+    # zero padding: no wrap-around
+    inverse = np.stack([_inverse_response(drive, 2 * n, j, band) for j in range(p.shape[1])], axis=1)
+    correction = np.zeros_like(p)
+    best, best_error = correction, math.inf
+    for _ in range(COMPENSATION_PASSES):
+        dv, da = _derivatives(correction, drive.period)
+        feedback = drive.simulate(p + correction, v + dv, a + da)[0]
+        error = p - feedback
+        if np.max(np.abs(error)) < best_error:
+            best, best_error = correction, np.max(np.abs(error))
+        step = np.fft.irfft(np.fft.rfft(error, 2 * n, axis=0) * inverse, 2 * n, axis=0)[:n]
+        correction = correction + step
+        correction[:fixed] = 0.0  # starts at rest; leads by the rest left before the motion
+    return best
+
+
+def settled(
+    correction: np.ndarray, motion_end: int, period: float, tolerance: float = SETTLED
+) -> np.ndarray:
+    """The correction (n, joints) up to where it has settled below `tolerance` (m), but not
+    before sample `motion_end`, ending at exactly zero; with its derivatives:
+    (3, kept, joints). The command lasts (kept - 1) servo periods."""
+    unsettled = np.flatnonzero(np.any(np.abs(correction) > tolerance, axis=1))
+    last = max(motion_end, unsettled[-1] + 1 if unsettled.size else 0)
+    kept = correction[: last + 1].copy()
+    kept[-1] = 0.0
+    return np.stack([kept, *_derivatives(kept, period)])
+
+
 def _derivatives(x: np.ndarray, period: float) -> tuple[np.ndarray, np.ndarray]:
-    """Central first and second differences of a sequence that is at rest at both ends."""
-    padded = np.concatenate(([x[0]], x, [x[-1]]))
+    """Central first and second differences (along axis 0) of a sequence at rest at both ends."""
+    padded = np.concatenate((x[:1], x, x[-1:]))
     return (padded[2:] - padded[:-2]) / (2 * period), (padded[2:] - 2 * x + padded[:-2]) / period**2
 
 
-def _inverse_response(drive: DriveModel, n: int) -> np.ndarray:
+def _inverse_response(
+    drive: DriveModel, n: int, joint: int = 0, band: tuple[float, float] = INVERSE_BAND
+) -> np.ndarray:
     """Frequency response (np.fft.rfft bins of an n-sample sequence) from a feedback error
-    to the command correction that removes it, for the drive's linear part.
+    to the command correction that removes it, for one joint's linear drive part.
 
     Per servo period the drive computes v_cmd = ff*v_ref + af*lag*a_ref + kp*(p_ref - y) from
     the encoder reading y taken before the step, lags it by exp(-T/lag) and integrates the
@@ -435,14 +466,14 @@ def _inverse_response(drive: DriveModel, n: int) -> np.ndarray:
     differences as v_ref and a_ref. Hence y = G*(K*p_ref - kp*y) with
     G = (1-decay)*T*(1+z) / (2*(z-decay)*(z-1)) and K = ff*D1 + af*lag*D2 + kp, and the
     inverse is (1/G + kp)/K. G vanishes at half the servo rate (trapezoidal rule), so the
-    inverse is faded out over INVERSE_BAND; the vibration lives far below it.
+    inverse is faded out over `band`; the vibration lives far below it.
     """
-    kp, ff, af, lag, decay = (float(np.ravel(x)[0]) for x in (
+    kp, ff, af, lag, decay = (float(np.ravel(x)[joint]) for x in (
         drive.kp, drive.velocity_ff, drive.accel_ff, drive.lag, drive.decay))
     period = drive.period
     f = np.fft.rfftfreq(n)  # cycles per servo period
     z = np.exp(2j * math.pi * f)
-    lo, hi = INVERSE_BAND
+    lo, hi = band
     fade = np.sin(0.5 * math.pi * np.clip((hi - f) / (hi - lo), 0.0, 1.0)) ** 2
     with np.errstate(divide="ignore", invalid="ignore"):
         inv_g = 2 * (z - decay) * (z - 1) / ((1 - decay) * period * (1 + z))

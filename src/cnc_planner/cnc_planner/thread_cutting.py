@@ -1,0 +1,652 @@
+"""Thread cutting on the lathe: multi-pass synchronised helix, optionally with a
+chip-breaking vibration along the infeed direction (design, method 4).
+
+Geometry (SI, external thread; an internal one mirrors x). Pass k cuts to the cumulative
+radial depth d_k. The tool moves in along the infeed line, at infeed_angle from radial:
+at depth d its tip is at x = major_radius - d and shifted d*tan(infeed_angle) along the
+feed, so it slides down the trailing flank and its leading edge does the cutting. The
+helix angle psi of a pass is the spindle angle counted from where that pass's helix
+passes start_z; psi is the groove coordinate, the same point of the groove on every pass:
+
+    depth(psi) = d_k - A_k * (1 - w(D_k*psi/2pi + k*phase_shift/2pi))
+    x = major_radius - depth,   z = start_z - pitch*psi/2pi - depth*tan(infeed_angle)
+
+with w the vibration module's waveform (0 at the return point, 1 at the turning point),
+A_k = Q * (d_k - d_(k-1)) the radial amplitude and D_k = D + k*D_step. The vibration
+therefore moves x and z together along the infeed line and never leaves the flank. With
+phase_shift = 180 deg pass k returns where pass k-1 reached its turning point d_(k-1);
+with Q > 1 its return lies above it: the tool is in air there and the chip breaks, at
+least once per vibration. Spring passes run at full depth without vibration and take
+off what the last returns left standing.
+
+Every pass's helix passes start_z at the same spindle phase (the index, plus 360/starts
+per start), so all passes land in one groove; the tool idles at the pass start until
+the phase comes round, as a real lathe waits for the index pulse. z is locked to the
+spindle angle, not to time. The ramp onto the helix runs in the air before the face
+z=0; past end_z the tool pulls out on a retreating stroke into the relief groove.
+Each pass's x/z command is pre-compensated with the drive model (vibration.learn_correction)
+so the bridge's feedback, not only the command, holds lead, depth and flank offset.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from types import SimpleNamespace
+
+import numpy as np
+from ruckig import InputParameter, RuckigError, Trajectory
+
+from cnc_msgs_py.machine import SPINDLE, Machine
+from cnc_servo_bridge.drive import DriveModel
+from cnc_servo_bridge.stop import velocity_trajectory
+from cnc_servo_bridge.thread_analysis import (
+    CHIP_LIMIT_REVS, CUT_TOLERANCE, cuts_against_envelope, longest_runs,
+)
+
+from .builder import PlanBuilder
+from .motion import MotionError, axis_limits, calculate
+from .timeline import Piece
+from .vibration import COMPENSATION_TAIL, learn_correction, settled, waveform
+
+TWO_PI = 2.0 * math.pi
+JOINTS = ("x", "z")
+RETRACT_CLEARANCE = 1e-3  # m: radial clearance above the stock between passes
+SETTLE_TIME = 0.05  # s at rest before a pass: the drives settle after the rapid in
+SPINDLE_SETTLE = 0.2  # s after the spindle reaches speed: its following error has died out
+CHECK_POINTS_PER_REV = 720  # groove grid of the chip-breaking check
+Q_MAX = 20.0  # the job schema's bound: the search for a working Q stops there
+WAVE_POINTS = 4096  # phase samples for the waveform's derivative maxima
+RAMP_JERK_SHARE = 0.6  # of the axis jerk for ramps onto and off the helix: room for the
+# compensated command, which leads each jerk step by the drive's velocity lag
+WAVE_LIMIT_SHARE = 0.95  # of each axis limit for the vibration: the compensated command
+# leads the motion and runs a few per cent above it
+COMPENSATION_BAND = (0.05, 0.12)  # of the servo rate (50..120 Hz at 1 ms): above the vibration,
+# below the encoder quantisation noise a wider band would feed into the command's jerk
+LEAD_TIME = 0.06  # s at rest before the ramp: the band-limited compensation leads this far
+SETTLED_COUNTS = 0.25  # encoder counts: a command correction below this has settled
+MAX_JOIN_CYCLES = 4  # the ramp may take this many vibration cycles to catch the helix
+
+
+class ThreadError(ValueError):
+    """A thread job that cannot be cut as asked; one line naming the job field."""
+
+
+@dataclass(frozen=True)
+class ThreadVibration:
+    """Chip-breaking vibration of a thread: D vibrations per revolution on the first pass,
+    D_step more per pass, radial amplitude Q x the pass's depth of cut, phase advanced by
+    phase_shift (rad) per pass against the spindle phase."""
+
+    D: float
+    Q: float
+    phase_shift: float = math.pi
+    D_step: float = 0.0
+
+
+@dataclass(frozen=True)
+class ThreadSpec:
+    """A thread job in SI units (m, rad, rad/s); pitch is the lead per spindle revolution."""
+
+    start_z: float
+    end_z: float
+    major_radius: float
+    pitch: float
+    depth: float
+    spindle_speed: float
+    passes: int = 6
+    depths: tuple[float, ...] | None = None
+    infeed_angle: float = math.radians(29.5)
+    spring_passes: int = 1
+    starts: int = 1
+    internal: bool = False
+    vibration: ThreadVibration | None = None
+
+    @classmethod
+    def from_job(cls, job: SimpleNamespace) -> ThreadSpec:
+        """From a parsed job (cnc_msgs_py.job.parse_job, already SI)."""
+        t, vib = job.thread, job.vibration
+        if vib is not None and vib.D is None:
+            raise ThreadError(
+                "vibration.E: a thread vibration takes D (vibrations per revolution), not E and R"
+            )
+        return cls(
+            start_z=t.start_z, end_z=t.end_z, major_radius=t.major_radius, pitch=t.pitch,
+            depth=t.depth, spindle_speed=job.spindle_rpm,
+            passes=len(t.depths) if t.depths else t.passes,
+            depths=tuple(t.depths) if t.depths else None, infeed_angle=t.infeed_angle,
+            spring_passes=t.spring_passes, starts=t.starts, internal=t.internal,
+            vibration=None if vib is None else ThreadVibration(vib.D, vib.Q, vib.phase_shift, vib.D_step),
+        )
+
+    @property
+    def direction(self) -> float:
+        """+1 or -1: the way z feeds from start_z to end_z."""
+        return math.copysign(1.0, self.end_z - self.start_z)
+
+    @property
+    def radial(self) -> float:
+        """x per unit of depth: -1 external, +1 internal (the bore grows)."""
+        return 1.0 if self.internal else -1.0
+
+    @property
+    def lead_speed(self) -> float:
+        """z speed of the helix (m/s)."""
+        return self.pitch * self.spindle_speed / TWO_PI
+
+
+@dataclass(frozen=True)
+class Pass:
+    """One pass: cumulative depth, its depth of cut, and its vibration (amplitude 0: none)."""
+
+    index: int
+    depth: float
+    doc: float
+    amplitude: float
+    per_rev: float
+    phase: float  # vibration phase at psi = 0, in cycles
+
+    @property
+    def spring(self) -> bool:
+        return self.doc == 0.0
+
+
+def pass_depths(spec: ThreadSpec) -> list[float]:
+    """Cumulative radial depth of every pass, spring passes (full depth) included.
+
+    Without `depths`: d_k = depth*sqrt(k/passes). The chip of a V thread is a triangle whose
+    area grows with the square of the depth, so this keeps the chip area of every pass
+    equal (depth*depth/passes*tan(flank)), which makes the depth of cut decrease.
+    """
+    cuts = list(spec.depths) if spec.depths else [
+        spec.depth * math.sqrt(k / spec.passes) for k in range(1, spec.passes + 1)
+    ]
+    return cuts + [spec.depth] * spec.spring_passes
+
+
+def _passes(spec: ThreadSpec, vib: ThreadVibration | None = None) -> list[Pass]:
+    vib = spec.vibration if vib is None else vib
+    out, previous = [], 0.0
+    for k, depth in enumerate(pass_depths(spec)):
+        doc = depth - previous if k < spec.passes else 0.0
+        vibrating = vib is not None and doc > 0.0
+        out.append(Pass(
+            index=k, depth=depth, doc=doc,
+            amplitude=vib.Q * doc if vibrating else 0.0,
+            per_rev=vib.D + k * vib.D_step if vibrating else 0.0,
+            phase=(k * vib.phase_shift / TWO_PI) % 1.0 if vibrating else 0.0,
+        ))
+        previous = depth
+    return out
+
+
+# -- validation ---------------------------------------------------------------------------
+def _rpm(omega: float) -> float:
+    return omega * 60.0 / TWO_PI
+
+
+def _mm(value: float) -> str:
+    return f"{value * 1e3:.4g} mm"
+
+
+def _ramp(speed: float, machine: Machine) -> Trajectory:
+    """Time-optimal z ramp from rest to the helix speed."""
+    z = machine.axis("z")
+    return velocity_trajectory([0.0], [0.0], [0.0], [speed], [z.max_velocity], [z.max_acceleration],
+                               [RAMP_JERK_SHARE * z.max_jerk])
+
+
+def _wave_maxima() -> np.ndarray:
+    """max |w'|, |w''|, |w'''| per cycle of the symmetric waveform."""
+    _, *derivatives = waveform(np.arange(WAVE_POINTS) / WAVE_POINTS)
+    return np.array([np.max(np.abs(d)) for d in derivatives])
+
+
+def _check_fields(spec: ThreadSpec) -> None:
+    def positive(field: str, value: float) -> None:
+        if not (math.isfinite(value) and value > 0):
+            raise ThreadError(f"{field}: must be > 0, got {value * 1e3:g} mm")
+
+    positive("thread.pitch", spec.pitch)
+    positive("thread.major_radius", spec.major_radius)
+    if not (math.isfinite(spec.depth) and spec.depth > 0):
+        raise ThreadError(f"thread.depth: must be > 0, got {spec.depth * 1e3:g} mm")
+    if spec.depth >= spec.major_radius:
+        raise ThreadError(
+            f"thread.depth: {_mm(spec.depth)} is not smaller than major_radius {_mm(spec.major_radius)}"
+        )
+    if not 0.0 <= spec.infeed_angle < math.pi / 2:
+        raise ThreadError(
+            f"thread.infeed_angle: {math.degrees(spec.infeed_angle):g} deg is outside 0..90 deg "
+            "(0 = radial infeed, below 90)"
+        )
+    if not spec.start_z > 0.0:
+        raise ThreadError(
+            f"thread.start_z: {_mm(spec.start_z)} is not in the air: each pass starts in front of the face z=0"
+        )
+    if not spec.end_z < 0.0:
+        raise ThreadError(
+            f"thread.end_z: {_mm(spec.end_z)} is on the wrong side: the thread runs from start_z "
+            f"{_mm(spec.start_z)} through the face z=0 into the stock, so end_z must be < 0"
+        )
+    for field, value, least in (("passes", spec.passes, 1), ("spring_passes", spec.spring_passes, 0),
+                                ("starts", spec.starts, 1)):
+        if not (isinstance(value, int) and value >= least):
+            raise ThreadError(f"thread.{field}: must be a whole number >= {least}, got {value!r}")
+    if spec.depths is not None:
+        depths = list(spec.depths)
+        if len(depths) != spec.passes:
+            raise ThreadError(f"thread.depths: {len(depths)} depths for {spec.passes} passes")
+        if depths[0] <= 0 or any(b <= a for a, b in zip(depths, depths[1:])):
+            raise ThreadError("thread.depths: cumulative depths must be > 0 and increase")
+        if abs(depths[-1] - spec.depth) > 1e-9:
+            raise ThreadError(
+                f"thread.depths: the last depth {_mm(depths[-1])} must equal thread.depth {_mm(spec.depth)}"
+            )
+        docs = np.diff([0.0] + depths)
+        grows = np.flatnonzero(docs[1:] > docs[:-1] + 1e-12)
+        if grows.size:
+            k = int(grows[0]) + 1
+            raise ThreadError(
+                f"thread.depths: the depth of cut grows from pass {k} ({_mm(docs[k - 1])}) "
+                f"to pass {k + 1} ({_mm(docs[k])}); it must never grow"
+            )
+
+
+def _check_speed(spec: ThreadSpec, machine: Machine) -> None:
+    omega, spindle, z = spec.spindle_speed, machine.axis(SPINDLE), machine.axis("z")
+    if not (math.isfinite(omega) and omega > 0):
+        raise ThreadError(f"spindle_rpm: a thread needs a turning spindle, got {_rpm(omega):g} rpm")
+    if omega > spindle.max_velocity * (1 + 1e-9):
+        raise ThreadError(
+            f"spindle_rpm: {_rpm(omega):.0f} rpm is more than the spindle's "
+            f"{_rpm(spindle.max_velocity):.0f} rpm"
+        )
+    if spec.lead_speed > z.max_velocity:
+        raise ThreadError(
+            f"thread.pitch: {spec.pitch * 1e3:g} mm/rev needs z speed {spec.lead_speed:.3g} m/s at "
+            f"{_rpm(omega):.0f} rpm, more than the z axis's {z.max_velocity:g} m/s; "
+            f"max {math.floor(_rpm(z.max_velocity * TWO_PI / spec.pitch)):.0f} rpm"
+        )
+
+
+def _check_room(spec: ThreadSpec, machine: Machine) -> None:
+    """The ramp onto the helix must end before the face, the pull-out stay within travel.
+
+    Estimated: ramp travel at the helix speed, one vibration of helix travel for the ramp
+    to catch the waveform, and the deepest flank offset; plan_thread checks exactly.
+    """
+    tan, vib = math.tan(spec.infeed_angle), spec.vibration
+    ramp = _ramp(spec.lead_speed, machine).duration
+    catch = spec.pitch / vib.D if vib is not None else 0.0
+    travel = spec.lead_speed * ramp / 2 + catch
+    need = spec.depth * tan + travel
+    if spec.start_z < need:
+        raise ThreadError(
+            f"thread.start_z: {_mm(spec.start_z)} leaves too little room before the face to reach the "
+            f"lead speed {spec.lead_speed * 1e3:.4g} mm/s: needs {_mm(need)} (ramp and flank offset)"
+        )
+    x_axis, z_axis = machine.axis("x"), machine.axis("z")
+    x_clear = spec.major_radius - spec.radial * RETRACT_CLEARANCE
+    x_deep = spec.major_radius + spec.radial * spec.depth
+    for x in (x_clear, x_deep):
+        if not x_axis.within_travel(x):
+            raise ThreadError(
+                f"thread.major_radius: the tool would reach x = {_mm(x)}, outside the x axis travel "
+                f"{_mm(x_axis.min)}..{_mm(x_axis.max)}"
+            )
+    overrun = spec.end_z + spec.direction * (travel + spec.pitch)
+    for field, z in (("thread.start_z", spec.start_z), ("thread.end_z", overrun)):
+        if not z_axis.within_travel(z):
+            raise ThreadError(
+                f"{field}: the tool would reach z = {_mm(z)}, outside the z axis travel "
+                f"{_mm(z_axis.min)}..{_mm(z_axis.max)}"
+            )
+
+
+def _chip_revs(spec: ThreadSpec, vib: ThreadVibration) -> np.ndarray:
+    """Longest continuous cut (revolutions) of every vibrated pass on the ideal geometry,
+    judged like thread_analysis judges feedback: against the envelope of earlier passes."""
+    passes = [p for p in _passes(spec, vib) if not p.spring]
+    s = spec.direction
+    face, end = s * -spec.start_z / spec.pitch, s * (spec.end_z - spec.start_z) / spec.pitch
+    psi = np.linspace(face, end, math.ceil((end - face) * CHECK_POINTS_PER_REV) + 1)
+    depth = np.array([
+        p.depth - p.amplitude * (1.0 - waveform(p.per_rev * psi + p.phase)[0]) for p in passes
+    ])
+    cutting = cuts_against_envelope(depth) > CUT_TOLERANCE
+    return longest_runs(cutting) / CHECK_POINTS_PER_REV
+
+
+def _check_vibration_fields(vib: ThreadVibration) -> None:
+    for field, value in (("D", vib.D), ("Q", vib.Q)):
+        if not (math.isfinite(value) and value > 0):
+            raise ThreadError(f"vibration.{field}: must be > 0, got {value:g}")
+    if not (math.isfinite(vib.D_step) and vib.D_step >= 0):
+        raise ThreadError(f"vibration.D_step: must be >= 0, got {vib.D_step:g}")
+    if not math.isfinite(vib.phase_shift):
+        raise ThreadError(f"vibration.phase_shift: expected a finite angle, got {vib.phase_shift!r}")
+
+
+def _check_chips(spec: ThreadSpec, vib: ThreadVibration) -> None:
+    """Every vibrated pass must break its chip within CHIP_LIMIT_REVS; else name the field
+    to change: phase_shift (if 180 deg would do), Q (with the least that works), or D."""
+    if vib.Q <= 1.0:
+        raise ThreadError(
+            f"vibration.Q: {vib.Q:g} never lifts the tool out of the cut: the return must rise above the "
+            "earlier passes by more than the depth of cut (amplitude = Q x depth of cut); need Q > 1"
+        )
+    if spec.spring_passes < 1:
+        raise ThreadError(
+            "thread.spring_passes: 0 with a vibration leaves the last pass's returns standing; need >= 1"
+        )
+
+    def worst(v: ThreadVibration) -> tuple[float, int]:
+        revs = _chip_revs(spec, v)
+        return float(revs.max()), int(np.argmax(revs)) + 1
+
+    def breaks(q: float) -> bool:
+        return worst(ThreadVibration(vib.D, q, vib.phase_shift, vib.D_step))[0] <= CHIP_LIMIT_REVS
+
+    chip, k = worst(vib)
+    if chip <= CHIP_LIMIT_REVS:
+        return
+    told = f"leaves a continuous cut of {chip:.2f} revs in pass {k}"
+    if worst(ThreadVibration(vib.D, vib.Q, math.pi, vib.D_step))[0] <= CHIP_LIMIT_REVS:
+        raise ThreadError(
+            f"vibration.phase_shift: {math.degrees(vib.phase_shift):g} deg {told}: its returns miss "
+            "the previous pass's turning points; 180 deg puts them there"
+        )
+    qs = np.geomspace(vib.Q, Q_MAX, 40)
+    first = next((i for i in range(1, qs.size) if breaks(qs[i])), None)
+    if first is not None:
+        lo, hi = qs[first - 1], qs[first]
+        for _ in range(12):
+            mid = (lo + hi) / 2
+            lo, hi = (lo, mid) if breaks(mid) else (mid, hi)
+        raise ThreadError(f"vibration.Q: {vib.Q:g} {told}; need Q >= {math.ceil(hi * 100) / 100:.2f}")
+    raise ThreadError(
+        f"vibration.D: {vib.D:g} vibrations/rev (+{vib.D_step:g} per pass) {told}; the chip breaks at most "
+        "once per vibration: raise D"
+    )
+
+
+def _check_follow(spec: ThreadSpec, machine: Machine) -> None:
+    """The waveform of every pass within the x and z velocity, acceleration and jerk limits.
+
+    Velocity grows with the spindle speed, acceleration with its square, jerk with its cube,
+    so each limit gives the spindle speed at which the waveform just touches it.
+    """
+    omega, tan, maxima = spec.spindle_speed, math.tan(spec.infeed_angle), _wave_maxima()
+    worst = None
+    for p in _passes(spec):
+        if p.spring:
+            continue
+        rate = p.per_rev * omega / TWO_PI  # vibrations per second
+        radial = p.amplitude * maxima * rate ** np.arange(1, 4)  # depth: |v|, |a|, |j|
+        for joint, need in (("x", radial), ("z", tan * radial + np.array([spec.lead_speed, 0.0, 0.0]))):
+            axis = machine.axis(joint)
+            for order, (quantity, limit, unit) in enumerate((
+                ("velocity", axis.max_velocity, "m/s"), ("acceleration", axis.max_acceleration, "m/s^2"),
+                ("jerk", axis.max_jerk, "m/s^3"),
+            )):
+                usable = WAVE_LIMIT_SHARE * limit
+                top = omega * (usable / need[order]) ** (1.0 / (order + 1)) if need[order] > 0 else math.inf
+                if worst is None or top < worst[0]:
+                    worst = (top, joint, quantity, need[order], limit, unit, p)
+    top, joint, quantity, need, limit, unit, p = worst
+    if omega > top:
+        raise ThreadError(
+            f"vibration.D: the {joint} axis cannot follow {p.per_rev:g} vibrations/rev of {_mm(p.amplitude)} "
+            f"(pass {p.index + 1}) at {_rpm(omega):.0f} rpm (needs {quantity} {need:.3g} {unit}, over "
+            f"{WAVE_LIMIT_SHARE:.0%} of its {limit:g} {unit}: the rest is the compensated command's); "
+            f"max spindle speed {math.floor(_rpm(top)):.0f} rpm"
+        )
+
+
+def check_thread(spec: ThreadSpec, machine: Machine) -> None:
+    """Reject a thread the lathe cannot cut as asked, before anything moves.
+
+    Raises:
+        ThreadError: one line starting with the job field (thread.*, vibration.*, spindle_rpm).
+    """
+    _check_fields(spec)
+    if spec.vibration is not None:
+        _check_vibration_fields(spec.vibration)
+    _check_speed(spec, machine)
+    if spec.vibration is not None:
+        _check_chips(spec, spec.vibration)
+        _check_follow(spec, machine)
+    _check_room(spec, machine)
+
+
+# -- motion --------------------------------------------------------------------------------
+def _reach(start: np.ndarray, target: np.ndarray, machine: Machine, duration: float | None = None,
+           joints: tuple[str, ...] = JOINTS) -> Trajectory | None:
+    """Jerk-limited move between states (rows: joints; columns: p, v, a) at the ramps'
+    share of the jerk limit, or None if ruckig finds none."""
+    inp = InputParameter(len(joints))
+    inp.current_position, inp.current_velocity, inp.current_acceleration = (list(c) for c in start.T)
+    inp.target_position, inp.target_velocity, inp.target_acceleration = (list(c) for c in target.T)
+    limits = [axis_limits(machine.axis(j)) for j in joints]
+    inp.max_velocity = [lim.velocity for lim in limits]
+    inp.max_acceleration = [lim.acceleration for lim in limits]
+    inp.max_jerk = [RAMP_JERK_SHARE * lim.jerk for lim in limits]
+    if duration is not None:
+        inp.minimum_duration = duration
+    try:
+        return calculate(inp)
+    except (MotionError, RuckigError):
+        return None
+
+
+def _evaluate(trajectory: Trajectory, t: np.ndarray) -> np.ndarray:
+    """(3, len(t), dofs): position, velocity, acceleration; the end state after the end."""
+    t = np.minimum(t, trajectory.duration)
+    return np.array([trajectory.at_time(float(ti)) for ti in t]).transpose(1, 0, 2)
+
+
+class PassMotion:
+    """One synchronised pass of x and z, in local time from its start at rest.
+
+    Timeline: LEAD_TIME at rest (room for the compensated command to lead);
+    a two-axis ruckig ramp from rest at the pass start onto the running helix with its
+    vibration, at the first servo instant it can reach it (position, velocity and
+    acceleration matched); the helix locked to the spindle angle; past end_z, at the first
+    servo instant the vibration retreats, the pull-out: x to the clearance radius and a
+    time-optimal z stop; ramps at RAMP_JERK_SHARE of the jerk limit. With a drive model,
+    `sample_all` returns the command whose simulated feedback is that motion
+    (vibration.learn_correction), and `duration` includes the command settling afterwards.
+    """
+
+    def __init__(self, spec: ThreadSpec, cut: Pass, psi0: float, machine: Machine, period: float,
+                 drive: DriveModel | None = None) -> None:
+        self.spec, self.cut, self.machine, self.period = spec, cut, machine, period
+        self.psi0 = psi0  # helix angle at local time 0; the helix meets the pass start at psi = 0
+        self.start = self._position(cut.depth, 0.0)
+        self.t_lead = round(LEAD_TIME / period) * period
+        self.t_join, self.ramp = self._join()
+        self.t_out, self.retract, self.stop = self._exit()
+        t_end = self.t_out + max(self.retract.duration, self.stop.duration)
+        self.end = np.array([self.retract.at_time(self.retract.duration)[0][0],
+                             self.stop.at_time(self.stop.duration)[0][0]])
+        self.duration = math.ceil(t_end / period - 1e-9) * period
+        self._correction: np.ndarray | None = None
+        self._cache: tuple[tuple[int, float, float], np.ndarray] | None = None
+        if drive is not None:
+            self._compensate(drive)
+
+    def _position(self, depth: np.ndarray | float, psi: np.ndarray | float) -> np.ndarray:
+        spec = self.spec
+        x = spec.major_radius + spec.radial * depth
+        z = spec.start_z + spec.direction * (spec.pitch * psi / TWO_PI + depth * math.tan(spec.infeed_angle))
+        return np.array([x, z])
+
+    def helix(self, t: np.ndarray) -> np.ndarray:
+        """(3, len(t), 2): x and z on the helix with the vibration, at local times t."""
+        spec, cut, omega = self.spec, self.cut, self.spec.spindle_speed
+        psi = self.psi0 + omega * t
+        rate = cut.per_rev * omega / TWO_PI
+        w, w1, w2, _ = waveform(cut.per_rev * psi / TWO_PI + cut.phase)
+        depth = cut.depth - cut.amplitude * (1.0 - w)
+        ddepth, dddepth = cut.amplitude * rate * w1, cut.amplitude * rate**2 * w2
+        s, tan = spec.direction, math.tan(spec.infeed_angle)
+        out = np.empty((3, t.size, 2))
+        out[0] = self._position(depth, psi).T
+        out[1] = np.stack([spec.radial * ddepth, s * (spec.lead_speed + tan * ddepth)], 1)
+        out[2] = np.stack([spec.radial * dddepth, s * tan * dddepth], 1)
+        return out
+
+    def _state(self, t: float) -> np.ndarray:
+        return self.helix(np.array([t]))[:, 0, :].T  # rows x, z; columns p, v, a
+
+    def _join(self) -> tuple[float, Trajectory]:
+        """The first servo instant both axes can reach the running helix from rest."""
+        rest = np.stack([self.start, np.zeros(2), np.zeros(2)], 1)
+        cycle = TWO_PI / (max(self.cut.per_rev, 1.0) * self.spec.spindle_speed)
+        horizon = _ramp(self.spec.lead_speed, self.machine).duration + MAX_JOIN_CYCLES * cycle
+        for k in range(1, math.ceil(horizon / self.period) + 1):
+            t = self.t_lead + k * self.period
+            target = self._state(t)
+            fastest = _reach(rest, target, self.machine)
+            if fastest is None or fastest.duration > k * self.period + 1e-12:
+                continue
+            ramp = _reach(rest, target, self.machine, duration=k * self.period)
+            if ramp is not None and abs(ramp.duration - k * self.period) < 1e-9:
+                return t, ramp
+        raise ThreadError(
+            f"thread.start_z: the axes cannot ramp onto the helix of pass {self.cut.index + 1} "
+            f"within {horizon:.3g} s"
+        )
+
+    def _exit(self) -> tuple[float, Trajectory, Trajectory]:
+        """Leave the helix past end_z when the vibration retreats: x out to the clearance
+        radius, z to a time-optimal stop."""
+        spec, omega = self.spec, self.spec.spindle_speed
+        psi_end = TWO_PI * spec.direction * (spec.end_z - spec.start_z) / spec.pitch
+        first = math.ceil((psi_end - self.psi0) / omega / self.period - 1e-9)
+        cycle = TWO_PI / (omega * self.cut.per_rev) if self.cut.per_rev else self.period
+        t = (first + np.arange(math.ceil(cycle / self.period) + 1)) * self.period
+        depth_rate = spec.radial * self.helix(t)[1][:, 0]
+        retreating = np.flatnonzero(depth_rate <= 1e-12)
+        t_out = float(t[retreating[0]])
+        state = self._state(t_out)
+        x_clear = spec.major_radius - spec.radial * RETRACT_CLEARANCE
+        retract = _reach(state[:1], np.array([[x_clear, 0.0, 0.0]]), self.machine, joints=("x",))
+        z = self.machine.axis("z")
+        stop = velocity_trajectory(list(state[1, :1]), list(state[1, 1:2]), list(state[1, 2:]), [0.0],
+                                   [z.max_velocity], [z.max_acceleration], [RAMP_JERK_SHARE * z.max_jerk])
+        return t_out, retract, stop
+
+    def ideal(self, t: np.ndarray) -> np.ndarray:
+        """(3, len(t), 2): the motion itself (what the feedback should do)."""
+        out = np.zeros((3, t.size, 2))
+        out[0] = self.start
+        ramp = (t >= self.t_lead) & (t < self.t_join)
+        wave = (t >= self.t_join) & (t < self.t_out)
+        tail = t >= self.t_out
+        if ramp.any():
+            out[:, ramp] = _evaluate(self.ramp, t[ramp] - self.t_lead)
+        if wave.any():
+            out[:, wave] = self.helix(t[wave])
+        if tail.any():
+            local = t[tail] - self.t_out
+            out[:, tail, :1] = _evaluate(self.retract, local)
+            out[:, tail, 1:] = _evaluate(self.stop, local)
+        return out
+
+    def _compensate(self, drive: DriveModel) -> None:
+        n = math.ceil((self.duration + COMPENSATION_TAIL) / self.period) + 1
+        p, v, a = self.ideal(np.arange(n) * self.period)
+        best = learn_correction(drive, p, v, a, round(LEAD_TIME / self.period) // 2, COMPENSATION_BAND)
+        # settled within a fraction of an encoder count: below that it is quantisation the
+        # learning picked up from the simulated encoder, not lag
+        tolerance = SETTLED_COUNTS * float(np.min(drive.resolution))
+        self._correction = settled(best, round(self.duration / self.period), self.period, tolerance)
+        self.duration = (self._correction.shape[1] - 1) * self.period
+
+    def sample_all(self, t: np.ndarray) -> np.ndarray:
+        """(3, len(t), 2): the command at local times t (cached: x and z ask alike)."""
+        key = (t.size, float(t[0]), float(t[-1])) if t.size else (0, 0.0, 0.0)
+        if self._cache is not None and self._cache[0] == key:
+            return self._cache[1]
+        out = self.ideal(t)
+        if self._correction is not None:
+            grid = np.arange(self._correction.shape[1]) * self.period
+            for k in range(3):
+                for j in range(2):
+                    out[k, :, j] += np.interp(t, grid, self._correction[k, :, j], right=0.0)
+        self._cache = (key, out)
+        return out
+
+    def sampler(self, joint: int):
+        def sample(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            out = self.sample_all(t)
+            return out[0][:, joint], out[1][:, joint], out[2][:, joint]
+
+        return sample
+
+
+def plan_thread(builder: PlanBuilder, spec: ThreadSpec, servo_period: float = 1e-3,
+                compensate: bool = True) -> list[dict]:
+    """Append the whole thread cycle to the builder; returns one JSON-ready dict per pass.
+
+    Spindle to speed; the tool to the cycle start (clearance radius, start_z; from wherever
+    it is, clear of the stock); per pass and start: rapid z to the pass start, rapid x in
+    along the infeed line, idle until the spindle phase of the groove, the synchronised
+    pass (PassMotion, drive-compensated unless `compensate` is False), pull-out; finally
+    back to the cycle start. Events: "thread_pass" as each pass begins, "sync" where it
+    locks onto the helix.
+
+    Raises:
+        ThreadError: check_thread's rejections (before anything is added), or a ramp that
+            would not end before the face (the builder is then half-built: discard it).
+    """
+    machine = builder.machine
+    check_thread(spec, machine)
+    omega, s, r = spec.spindle_speed, spec.direction, spec.radial
+    drive = DriveModel(machine, servo_period, joints=JOINTS) if compensate else None
+    spindle = builder.timelines[SPINDLE]
+    builder.spindle(omega)
+    builder.rapid({"x": spec.major_radius - r * RETRACT_CLEARANCE, "z": spec.start_z})
+    lead_in = round(LEAD_TIME / servo_period) * servo_period + _ramp(spec.lead_speed, machine).duration / 2
+    report = []
+    for cut in _passes(spec):
+        for start in range(spec.starts):
+            x0 = spec.major_radius + r * cut.depth
+            z0 = spec.start_z + s * cut.depth * math.tan(spec.infeed_angle)
+            t_begin = builder.end_time(list(JOINTS))
+            t_z = builder.rapid({"z": z0})  # at the clearance radius
+            t_in = builder.rapid({"x": x0}, start=max(t_z, builder.end_time(["x"])))
+            # idle until the groove's spindle phase, so that the helix meets the pass start there
+            t_ready = max(t_in + SETTLE_TIME, builder.spindle_ready + SPINDLE_SETTLE)
+            phase = TWO_PI * start / spec.starts
+            theta_min = spindle.position_at(t_ready) + omega * lead_in
+            theta_ref = phase + TWO_PI * math.ceil((theta_min - phase) / TWO_PI)
+            t_ref = t_ready + (theta_ref - spindle.position_at(t_ready)) / omega
+            t0 = math.ceil((t_ref - lead_in) / servo_period - 1e-9) * servo_period
+            motion = PassMotion(spec, cut, spindle.position_at(t0) - theta_ref, machine, servo_period, drive)
+            z_join = motion.ideal(np.array([motion.t_join]))[0, 0, 1]
+            if s * z_join > 0.0:
+                raise ThreadError(
+                    f"thread.start_z: pass {cut.index + 1} locks onto the helix at z = {_mm(z_join)}, "
+                    "past the face z=0; start further out"
+                )
+            for j, joint in enumerate(JOINTS):
+                builder.timelines[joint].add(Piece(t0, motion.duration, motion.sampler(j)), motion.end[j])
+            info = {
+                "index": cut.index, "start": start, "spring": cut.spring,
+                "depth_mm": cut.depth * 1e3, "doc_mm": cut.doc * 1e3,
+                "amplitude_mm": cut.amplitude * 1e3,
+                "vibration_per_rev": cut.per_rev or None,
+                "vibration_phase_deg": cut.phase * 360.0 if cut.amplitude else None,
+                "spindle_phase_deg": math.degrees(phase),
+                "t_start": float(t_begin), "t_sync": t0 + motion.t_join, "t_end": t0 + motion.duration,
+            }
+            builder.event(t_begin, "thread_pass", **{k: info[k] for k in (
+                "index", "start", "spring", "depth_mm", "doc_mm", "amplitude_mm",
+                "vibration_per_rev", "vibration_phase_deg")})
+            builder.event(info["t_sync"], "sync", index=cut.index, start=start,
+                          spindle_phase_deg=info["spindle_phase_deg"])
+            report.append(info)
+    builder.rapid({"z": spec.start_z})
+    return report

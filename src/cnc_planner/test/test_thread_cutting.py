@@ -1,0 +1,266 @@
+"""Thread cutting with vibration (issue 9): the example job on the lathe, judged on the
+drive model's feedback (DriveModel.simulate of the plan sampled every servo period), as
+the bridge would publish it.
+
+Example job: 600 rpm, start_z 4, end_z -16, major_radius 6, pitch 1.75, depth 1.07 (mm),
+6 passes, infeed 29.5 deg, 1 spring pass; vibration D 1.5, Q 1.2, phase_shift 180, D_step 0.
+"""
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from cnc_msgs_py.job import parse_job
+from cnc_msgs_py.machine import load_machine
+from cnc_planner.builder import PlanBuilder
+from cnc_planner.thread_cutting import (
+    ThreadError, ThreadSpec, ThreadVibration, check_thread, pass_depths, plan_thread,
+)
+from cnc_servo_bridge.drive import DriveModel
+from cnc_servo_bridge.thread_analysis import analyze_thread
+
+T = 1e-3
+LATHE = load_machine("lathe")
+JOB = {
+    "schema": "cnc_job/1", "job_id": "thread-9", "kind": "thread", "machine": "lathe", "spindle_rpm": 600,
+    "thread": {"start_z": 4.0, "end_z": -16.0, "major_radius": 6.0, "pitch": 1.75, "depth": 1.07,
+               "passes": 6, "infeed_angle": 29.5, "spring_passes": 1},
+    "vibration": {"D": 1.5, "Q": 1.2, "phase_shift": 180, "D_step": 0.0},
+}
+SPEC = ThreadSpec.from_job(parse_job(JOB))
+PLAIN = dataclasses.replace(SPEC, vibration=None)
+# hand-computed: d_k = 1.07 * sqrt(k / 6), then the spring pass at full depth
+DEPTHS_MM = [0.436826, 0.617765, 0.756604, 0.873651, 0.976772, 1.07, 1.07]
+
+
+def rpm(value: float) -> float:
+    return value * 2 * math.pi / 60
+
+
+def plan(spec: ThreadSpec, machine=LATHE, compensate: bool = True):
+    builder = PlanBuilder(machine, {"x": 7e-3, "z": 4e-3})
+    info = plan_thread(builder, spec, compensate=compensate)
+    return builder.build(), info
+
+
+def run(spec: ThreadSpec, machine=LATHE, compensate: bool = True):
+    """Plan, command on the servo grid, feedback, and the analysis of the feedback."""
+    result, info = plan(spec, machine, compensate)
+    t = np.arange(0.0, result.duration + T / 2, T)
+    command = result.sample(t)
+    feedback = DriveModel(machine, T).simulate(*command)[0]
+    thread = dict(JOB["thread"], start_z=spec.start_z * 1e3, end_z=spec.end_z * 1e3,
+                  major_radius=spec.major_radius * 1e3, pitch=spec.pitch * 1e3, depth=spec.depth * 1e3,
+                  starts=spec.starts, internal=spec.internal)
+    report = analyze_thread(t, feedback[:, 0], feedback[:, 1], feedback[:, 2], thread)
+    return dict(plan=result, info=info, t=t, command=command, feedback=feedback, report=report)
+
+
+@pytest.fixture(scope="module")
+def vibrating():
+    return run(SPEC)
+
+
+@pytest.fixture(scope="module")
+def conventional():
+    return run(PLAIN)
+
+
+def test_pass_depths_are_hand_computed_and_the_cut_never_grows():
+    depths = pass_depths(SPEC)
+    assert np.allclose(np.array(depths) * 1e3, DEPTHS_MM, atol=1e-6)
+    docs = np.diff([0.0] + depths[:6])
+    assert np.all(np.diff(docs) < 0)
+    # constant chip area: d_k^2 - d_(k-1)^2 = depth^2 / passes
+    assert np.allclose(np.diff(np.square([0.0] + depths[:6])), 1.07e-3**2 / 6)
+    given = dataclasses.replace(SPEC, passes=4, depths=(0.5e-3, 0.8e-3, 1.0e-3, 1.07e-3), spring_passes=2)
+    assert pass_depths(given) == [0.5e-3, 0.8e-3, 1.0e-3, 1.07e-3, 1.07e-3, 1.07e-3]
+
+
+def test_pass_table_and_events(vibrating):
+    info = vibrating["info"]
+    assert [p["index"] for p in info] == list(range(7))
+    assert [p["depth_mm"] for p in info] == pytest.approx(DEPTHS_MM, abs=1e-6)
+    for k, p in enumerate(info[:6]):
+        assert p["amplitude_mm"] == pytest.approx(1.2 * p["doc_mm"])
+        assert p["vibration_per_rev"] == 1.5
+        assert p["vibration_phase_deg"] == pytest.approx(180.0 * (k % 2))
+        assert p["spindle_phase_deg"] == 0.0
+    spring = info[6]
+    assert spring["spring"] and spring["amplitude_mm"] == 0.0 and spring["vibration_per_rev"] is None
+    events = vibrating["plan"].events
+    starts = [e for e in events if e.name == "thread_pass"]
+    syncs = [e for e in events if e.name == "sync"]
+    assert [e.data["index"] for e in starts] == [e.data["index"] for e in syncs] == list(range(7))
+    assert all(a.time < b.time for a, b in zip(starts, syncs))
+
+
+def test_every_pass_meets_the_helix_at_the_same_spindle_phase():
+    """Hand check on the plain command: wherever a pass is synchronised, the nominal groove
+    line under the tool, g = z + depth*tan(29.5 deg), is start_z - pitch*theta/2pi with the
+    spindle angle theta counted from a whole revolution: phase 0 on every pass."""
+    result, info = plan(SPEC, compensate=False)
+    tan = math.tan(SPEC.infeed_angle)
+    for p in info:
+        t = np.arange(math.ceil(p["t_sync"] / T), math.floor((p["t_end"] - 0.1) / T)) * T
+        x, z, theta = result.sample(t)[0].T
+        g = z + (SPEC.major_radius - x) * tan
+        on_helix = g > SPEC.end_z  # before the pull-out
+        phase = np.mod(2 * math.pi * (SPEC.start_z - g) / SPEC.pitch - theta + math.pi, 2 * math.pi) - math.pi
+        assert on_helix.sum() > 500
+        assert np.abs(phase[on_helix]).max() < 1e-9
+
+
+def test_feedback_breaks_the_chip_in_every_cutting_pass(vibrating):
+    report = vibrating["report"]
+    assert report["synchronised_passes"] == 7
+    assert report["cutting_passes"] == 6
+    for p in report["passes"]:
+        if p["doc_mm"] > 0.05:
+            assert p["max_chip_revs"] <= 1.0
+            assert p["aircut_share"] > 0.05
+    assert report["max_chip_revs"] <= 1.0 and report["chips_broken"]
+
+
+def test_feedback_holds_the_thread_geometry(vibrating):
+    report = vibrating["report"]
+    assert report["depth_error_mm"] <= 0.02
+    assert report["overcut_mm"] <= 0.02
+    assert report["full_depth"]
+    assert report["helix_residual_mm"] < 0.01
+    assert report["doc_never_grows"]
+    assert report["infeed_angle_deg"] == pytest.approx(29.5, abs=0.05)
+    assert [p["depth_mm"] for p in report["passes"]] == pytest.approx(DEPTHS_MM, abs=0.002)
+    for k, p in enumerate(report["passes"][:6]):
+        assert p["vibration_per_rev"] == pytest.approx(1.5, abs=0.005)
+        # the phase shifts 180 deg against the spindle from pass to pass
+        assert abs((p["vibration_phase_deg"] - 180.0 * (k % 2) + 180) % 360 - 180) < 3.0
+        doc = DEPTHS_MM[k] - ([0.0] + DEPTHS_MM)[k]
+        assert p["vibration_amplitude_mm"] == pytest.approx(1.2 * doc, rel=0.05)
+
+
+def test_returns_reach_above_the_previous_turning_point(vibrating):
+    """Hand computed at g = -1.25 mm, 3 revolutions after start_z: the first pass is at its
+    turning point (u = 1.5*3 = 4.5 cycles: full depth 0.4368 mm), the second, shifted half a
+    cycle, at its return point 0.6178 - 1.2*0.1809 = 0.4006 mm: 0.036 mm in the air."""
+    t, (x, z, _) = vibrating["t"], vibrating["feedback"].T
+    tan = math.tan(SPEC.infeed_angle)
+    depth = SPEC.major_radius - x
+    g = z + depth * tan
+    found = []
+    for p in vibrating["info"][:2]:
+        inside = (t >= p["t_sync"]) & (t < p["t_end"]) & (np.abs(g + 1.25e-3) < 0.1e-3)
+        found.append(np.interp(-1.25e-3, g[inside][::-1], depth[inside][::-1]) * 1e3)
+    assert found == pytest.approx([0.436826, 0.617765 - 1.2 * 0.180939], abs=0.001)
+
+
+def test_without_vibration_a_correct_thread_with_long_chips(conventional, vibrating):
+    report = conventional["report"]
+    assert report["synchronised_passes"] == 7 and report["cutting_passes"] == 6
+    assert report["full_depth"] and report["helix_residual_mm"] < 0.01 and report["doc_never_grows"]
+    assert [p["depth_mm"] for p in report["passes"]] == pytest.approx(DEPTHS_MM, abs=0.002)
+    assert all(p["vibration_per_rev"] is None for p in report["passes"])
+    # every cutting pass is one chip over the whole thread: 16 mm / 1.75 mm = 9.14 revs
+    assert report["max_chip_revs"] == pytest.approx(16 / 1.75, abs=0.01)
+    assert not report["chips_broken"]
+    assert vibrating["report"]["max_chip_revs"] < report["max_chip_revs"] / 9
+
+
+@pytest.mark.parametrize("case", ["vibrating", "conventional"])
+def test_command_within_the_axis_limits(case, request):
+    result = request.getfixturevalue(case)
+    p = result["command"][0]
+    for j, joint in enumerate(("x", "z")):
+        axis = LATHE.axis(joint)
+        vel = np.diff(p[:, j]) / T
+        acc = np.diff(vel) / T
+        jerk = np.diff(acc) / T
+        assert np.abs(vel).max() <= axis.max_velocity * 1.001
+        assert np.abs(acc).max() <= axis.max_acceleration * 1.001
+        assert np.abs(jerk).max() <= axis.max_jerk * 1.001
+        assert axis.within_travel(p[:, j].min()) and axis.within_travel(p[:, j].max())
+
+
+def test_at_the_highest_accepted_speed_the_feedback_still_breaks_chips():
+    with pytest.raises(ThreadError, match=r"max spindle speed (\d+) rpm") as err:
+        check_thread(dataclasses.replace(SPEC, spindle_speed=rpm(2000)), LATHE)
+    top = int(err.value.args[0].rsplit("max spindle speed ", 1)[1].split()[0])
+    assert 700 < top < 800  # the x jerk limit on the first pass's 0.52 mm vibration
+    fast = run(dataclasses.replace(SPEC, spindle_speed=rpm(top)))
+    report = fast["report"]
+    assert report["chips_broken"] and report["full_depth"] and report["helix_residual_mm"] < 0.01
+    p = fast["command"][0]
+    jerk = np.diff(p[:, 0], 3) / T**3
+    assert np.abs(jerk).max() <= LATHE.axis("x").max_jerk * 1.001
+
+
+def test_compensation_keeps_the_vibration_where_the_lag_loses_it():
+    """x and z drives without velocity feed-forward: the plain command's feedback lags and
+    smooths the vibration away (one long chip per pass); the drive-compensated one still
+    breaks every chip and stays on the helix."""
+    drives = {j: dataclasses.replace(LATHE.drives[j], velocity_ff=0.0) for j in ("x", "z")}
+    machine = dataclasses.replace(LATHE, drives={**LATHE.drives, **drives})
+    lagging = run(SPEC, machine, compensate=False)["report"]
+    following = run(SPEC, machine)["report"]
+    assert lagging["max_chip_revs"] > 5
+    assert following["chips_broken"] and following["full_depth"] and following["helix_residual_mm"] < 0.01
+
+
+def test_internal_two_start_thread():
+    spec = ThreadSpec(start_z=3e-3, end_z=-5e-3, major_radius=8e-3, pitch=2e-3, depth=0.6e-3,
+                      spindle_speed=rpm(500), passes=3, starts=2, internal=True,
+                      vibration=ThreadVibration(D=1.5, Q=1.3))
+    result = run(spec)
+    report, info = result["report"], result["info"]
+    assert [(p["index"], p["start"], p["spindle_phase_deg"]) for p in info[:2]] == [(0, 0, 0.0), (0, 1, 180.0)]
+    assert [p["start"] for p in report["passes"]] == [0, 1] * 4
+    assert report["chips_broken"] and report["full_depth"] and report["helix_residual_mm"] < 0.01
+    x = result["command"][0][:, 0]
+    # the bore grows with depth: x from the clearance inside it to the full depth outside
+    assert x.min() == pytest.approx(7e-3, abs=1e-9) and x.max() == pytest.approx(8.6e-3, abs=1e-6)
+
+
+BAD = [
+    ({"depth": 0.0}, "thread.depth", "> 0"),
+    ({"depth": 6.5e-3}, "thread.depth", "major_radius"),
+    ({"pitch": 0.0}, "thread.pitch", "> 0"),
+    ({"pitch": -1e-3}, "thread.pitch", "> 0"),
+    ({"infeed_angle": math.radians(95)}, "thread.infeed_angle", "0..90"),
+    ({"infeed_angle": math.radians(-1)}, "thread.infeed_angle", "0..90"),
+    ({"end_z": 2e-3}, "thread.end_z", "wrong side"),
+    ({"end_z": 6e-3}, "thread.end_z", "wrong side"),
+    ({"start_z": -1e-3}, "thread.start_z", "air"),
+    ({"start_z": 1e-3}, "thread.start_z", "room before the face"),
+    ({"pitch": 60e-3, "vibration": None}, "thread.pitch",
+     "z speed 0.6 m/s at 600 rpm, more than the z axis's 0.5 m/s; max 500 rpm"),
+    ({"vibration": ThreadVibration(1.5, 1.0, math.pi)}, "vibration.Q", "need Q > 1"),
+    ({"vibration": ThreadVibration(1.5, 1.2, math.radians(150))}, None, None),  # accepted
+    ({"vibration": ThreadVibration(0.8, 1.2, math.pi)}, "vibration.Q", "need Q >= 1.48"),
+    ({"vibration": ThreadVibration(1.5, 1.2, 0.0)}, "vibration.phase_shift", "180 deg"),
+    ({"vibration": ThreadVibration(0.5, 1.2, math.pi)}, "vibration.D", "raise D"),
+    ({"spindle_speed": rpm(1000)}, "vibration.D", "x axis cannot follow"),
+    ({"spring_passes": 0}, "thread.spring_passes", ">= 1"),
+    ({"depths": (0.3e-3, 0.7e-3, 1.07e-3), "passes": 3}, "thread.depths", "grows"),
+    ({"spindle_speed": rpm(7000), "vibration": None}, "spindle_rpm", "spindle's"),
+]
+
+
+@pytest.mark.parametrize("change,field,reason", BAD)
+def test_bad_threads_are_rejected_naming_the_field(change, field, reason):
+    spec = dataclasses.replace(SPEC, **change)
+    if field is None:
+        check_thread(spec, LATHE)
+        return
+    builder = PlanBuilder(LATHE, {"x": 7e-3, "z": 4e-3})
+    with pytest.raises(ThreadError) as err:
+        plan_thread(builder, spec)
+    message = str(err.value)
+    assert message.startswith(field + ": ") and reason in message and "\n" not in message
+    assert all(not tl.pieces for tl in builder.timelines.values())  # nothing moved
+
+
+def test_e_and_r_vibration_is_no_thread_vibration():
+    job = dict(JOB, vibration={"E": 2.0, "R": 1.0, "Q": 1.2})
+    with pytest.raises(ThreadError, match=r"^vibration\.E: "):
+        ThreadSpec.from_job(parse_job(job))

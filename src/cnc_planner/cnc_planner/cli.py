@@ -61,6 +61,7 @@ def run_main(argv: list[str] | None = None) -> int:
         reason = f"machine: {err}" if isinstance(err, MachineError) else str(err)
         _write_json(out / "report.json", _rejected_report(job_id_of(locals().get("doc")), reason))
         return _fail("cnc-run", f"rejected: {reason}")
+    from .plots import write_plots
     from .report import build_report  # rclpy-free, but only needed past this point
     from .runner import RunError, run_job
     from cnc_servo_bridge.recording import read_run
@@ -71,8 +72,10 @@ def run_main(argv: list[str] | None = None) -> int:
                          timeout=args.timeout, progress=_show)
     except RunError as err:
         return _fail("cnc-run", str(err), 3)
-    report = build_report(read_run(out / "bag"))
+    run = read_run(out / "bag")
+    report = build_report(run)
     _write_json(out / "report.json", report)
+    write_plots(run, report, out / "plots")
     print(summary(report))
     return 0 if status["state"] == "succeeded" else 1
 

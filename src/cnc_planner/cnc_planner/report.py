@@ -39,7 +39,7 @@ def final_status(run: Run, job_id: str | None = None) -> dict:
     return finals[-1] if finals else {"job_id": job_id or "", "state": "unknown", "reason": "no final status recorded"}
 
 
-def _last_job(run: Run) -> tuple[str | None, SimpleNamespace | None]:
+def last_job(run: Run) -> tuple[str | None, SimpleNamespace | None]:
     if not run.goals:
         return None, None
     try:
@@ -55,7 +55,7 @@ def _last_job(run: Run) -> tuple[str | None, SimpleNamespace | None]:
 
 def build_report(run: Run) -> dict:
     """The figures of a run's last job, judged on feedback."""
-    job_id, job = _last_job(run)
+    job_id, job = last_job(run)
     status = final_status(run, job_id)
     axes = tuple(j for j in run.joints if j != SPINDLE)
     report = {
@@ -77,7 +77,7 @@ def build_report(run: Run) -> dict:
         machine = load_machine(job.machine)
     except MachineError:
         return report
-    window = _job_window(run, status["job_id"])
+    window = job_window(run, status["job_id"])
     if job.kind == "drill":
         report["drill"] = drill_section(run, job, machine, window)
     if job.kind == "turn":
@@ -89,7 +89,7 @@ def build_report(run: Run) -> dict:
     return report
 
 
-def _job_window(run: Run, job_id: str) -> np.ndarray:
+def job_window(run: Run, job_id: str) -> np.ndarray:
     """Feedback samples from the job's first setpoint to the end of the recording."""
     starts = [e["stamp_ns"] for e in run.events if e.get("job_id") == job_id and e["name"] == "job_start"]
     t0 = (starts[-1] / 1e9) if starts else run.feedback_t[0]

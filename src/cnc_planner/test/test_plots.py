@@ -1,0 +1,91 @@
+"""Run figures: each job kind gets its figures, each a real picture (not a blank canvas).
+
+The runs are synthetic: the planner's commands for a small job and the drive model's
+feedback for them, put into a Run as the recording would give them, without ROS or bags.
+"""
+import dataclasses
+import functools
+import json
+
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+from cnc_msgs_py.job import parse_job
+from cnc_msgs_py.machine import load_machine
+from cnc_planner.jobs import plan_job
+from cnc_planner.plots import write_plots
+from cnc_planner.report import build_report, simulated_feedback
+from cnc_servo_bridge.recording import Run
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+T0 = 2.0  # s of ROS time at which the synthetic job starts
+
+DRILL = {
+    "schema": "cnc_job/1", "job_id": "drill-test", "kind": "drill", "machine": "mill3",
+    "tool": {"diameter": 4.0}, "spindle_rpm": 3000,
+    "drill": {"holes": [[0, 0], [8, 0], [16, 0]], "depth": 3.0, "r_gap": 2.0, "feed": 1200},
+}
+TURN = {
+    "schema": "cnc_job/1", "job_id": "turn-test", "kind": "turn", "machine": "lathe", "spindle_rpm": 1500,
+    "turn": {"stock": [[0, 10], [-8, 10]], "profile": [[0, 7], [-8, 7]], "depth_of_cut": 1.5,
+             "feed": 0.3, "origin": [3, 14], "finish_allowance": 0.2},
+}
+VIBRATION = {
+    "schema": "cnc_job/1", "job_id": "vibration-test", "kind": "move", "machine": "lathe", "spindle_rpm": 600,
+    "move": [{"rapid": {"x": 10, "z": 1}}, {"linear": {"z": -1}, "feed": 60}, {"rapid": {"x": 12}}],
+    "vibration": {"D": 1.5, "Q": 1.2},
+}
+
+JOBS = {"drill": DRILL, "turn": TURN, "vibration": VIBRATION}
+
+
+@functools.cache
+def synthetic_run(name: str) -> Run:
+    """The job's commands and the drive model's feedback, stamped as a recording would be."""
+    doc = JOBS[name]
+    job = parse_job(doc)
+    machine = load_machine(job.machine)
+    plan = plan_job(job, machine)
+    t, feedback = simulated_feedback(plan, machine)
+    command, command_velocity, _ = plan.sample(t)
+    events = [{"job_id": job.job_id, "name": e.name, "stamp_ns": int(round((T0 + e.time) * 1e9)),
+               "plan_time_s": e.time, **e.data} for e in plan.events]
+    return Run(joints=tuple(plan.joints), feedback_t=T0 + t, feedback=feedback,
+               feedback_velocity=np.gradient(feedback, t, axis=0), command_t=T0 + t, command=command,
+               command_velocity=command_velocity, goals=[json.dumps(doc)], events=events,
+               statuses=[{"job_id": job.job_id, "state": "succeeded"}])
+
+
+def assert_pictures(paths: list, expected: list[str]) -> None:
+    assert [p.name for p in paths] == expected
+    for path in paths:
+        assert path.stat().st_size > 0
+        assert path.read_bytes()[:8] == PNG_SIGNATURE
+        assert float(np.std(imread(path))) > 0.0, f"{path.name} is blank"
+
+
+@pytest.mark.parametrize("name, expected", [
+    ("drill", ["following_error.png", "drill_xz.png", "drill_timing.png"]),
+    ("turn", ["following_error.png", "turn_passes.png"]),
+    ("vibration", ["following_error.png", "aircut.png", "aircut_map.png"]),
+])
+def test_each_job_kind_gets_its_figures(name, expected, tmp_path):
+    run = synthetic_run(name)
+    report = build_report(run)
+    assert_pictures(write_plots(run, report, tmp_path / "plots"), expected)
+
+
+def test_figures_of_a_recording_that_lost_its_tail_are_still_drawn(tmp_path):
+    # the feedback of the last holes was not recorded: the figures show what there is
+    full = synthetic_run("drill")
+    kept = full.feedback_t <= full.feedback_t[0] + 0.7 * (full.feedback_t[-1] - full.feedback_t[0])
+    run = dataclasses.replace(full, feedback_t=full.feedback_t[kept], feedback=full.feedback[kept],
+                              feedback_velocity=full.feedback_velocity[kept])
+    report = build_report(run)
+    assert_pictures(write_plots(run, report, tmp_path), ["following_error.png", "drill_xz.png", "drill_timing.png"])
+
+
+def test_a_run_without_feedback_draws_nothing(tmp_path):
+    run = Run(joints=("x", "z", "spindle"), goals=[json.dumps(TURN)])
+    assert write_plots(run, {"job_id": "turn-test"}, tmp_path) == []

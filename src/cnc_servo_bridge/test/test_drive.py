@@ -1,0 +1,168 @@
+"""Servo drive model against hand-computed steps.
+
+mill3's x drive: kp = 50 1/s, velocity_ff = 1, accel_ff = 0, velocity_lag = 1 ms,
+resolution 0.1 um; axis limits 0.8 m/s, 9.8 m/s^2. With a 1 ms servo period the
+velocity loop decays by exp(-T / lag) = exp(-1) per step.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from cnc_msgs_py.machine import load_machine
+from cnc_servo_bridge.drive import ACCELERATION_HEADROOM, VELOCITY_HEADROOM, DriveModel
+
+MILL = load_machine("mill3")
+T = 1e-3
+DECAY = math.exp(-1.0)
+RES = 1e-7
+
+
+def x_drive(machine=MILL) -> DriveModel:
+    return DriveModel(machine, T, ("x",))
+
+
+def with_x_drive(**changes):
+    drive = dataclasses.replace(MILL.drives["x"], **changes)
+    return dataclasses.replace(MILL, drives={**MILL.drives, "x": drive})
+
+
+def step(model: DriveModel, p: float, v: float = 0.0, a: float = 0.0) -> float:
+    return float(model.step(np.array([p]), np.array([v]), np.array([a]))[0])
+
+
+def test_constants_from_the_machine():
+    model = DriveModel(MILL, T)
+    assert model.joints == ("x", "y", "z", "spindle")
+    assert model.decay == pytest.approx([DECAY, DECAY, DECAY, math.exp(-0.5)])
+    assert model.v_limit == pytest.approx([0.96, 0.96, 0.72, 1256.4])  # 1.2 * max velocity
+    assert model.dv_limit == pytest.approx([0.0147, 0.0147, 0.0147, 0.75])  # 1.5 * max accel * T
+    assert (VELOCITY_HEADROOM, ACCELERATION_HEADROOM) == (1.2, 1.5)
+
+
+def test_first_step_from_rest_for_a_step_reference():
+    model = x_drive()
+    r = 1e-5  # 10 um step
+    error = step(model, r)
+    assert error == r  # measured 0 before the step
+    v_cmd = 50.0 * r  # 5e-4 m/s, far below the clamp
+    v1 = v_cmd * (1 - DECAY)  # 3.1606e-4 m/s after one lag step
+    p1 = 0.5 * v1 * T  # trapezoid: 1.5803e-7 m
+    assert model.state.velocity[0] == pytest.approx(v1, rel=1e-12)
+    assert model.state.position[0] == pytest.approx(p1, rel=1e-12)
+    assert p1 == pytest.approx(1.5803e-7, rel=1e-4)
+    assert model.state.measured[0] == pytest.approx(2e-7, abs=1e-18)  # quantised to 0.1 um
+
+
+def test_second_step_hand_computed():
+    model = x_drive()
+    r = 1e-5
+    step(model, r)
+    v1, p1 = model.state.velocity[0], model.state.position[0]
+    error = step(model, r)
+    assert error == pytest.approx(r - 2e-7, abs=1e-18)  # against the quantised reading
+    v_cmd = 50.0 * (r - 2e-7)
+    v2 = v_cmd + (v1 - v_cmd) * DECAY
+    assert model.state.velocity[0] == pytest.approx(v2, rel=1e-12)
+    assert model.state.position[0] == pytest.approx(p1 + 0.5 * (v1 + v2) * T, rel=1e-12)
+
+
+def test_velocity_feed_forward_first_step():
+    # No position error, v_ref = 10 mm/s: v_cmd = v_ref, the lag lets (1 - e^-1) through.
+    model = x_drive()
+    step(model, 0.0, v=0.01)
+    assert model.state.velocity[0] == pytest.approx(0.01 * (1 - DECAY), rel=1e-12)
+    assert model.state.position[0] == pytest.approx(0.5 * 0.01 * (1 - DECAY) * T, rel=1e-12)
+
+
+def test_acceleration_feed_forward_first_step():
+    model = x_drive(with_x_drive(accel_ff=1.0))
+    step(model, 0.0, v=0.01, a=2.0)
+    v_cmd = 0.01 + 1.0 * 0.001 * 2.0  # velocity_ff v + accel_ff * lag * a = 0.012
+    assert model.state.velocity[0] == pytest.approx(v_cmd * (1 - DECAY), rel=1e-12)
+
+
+def test_zero_steady_state_error_at_constant_velocity():
+    v = 0.05  # 3000 mm/min
+    n = 600
+    t = np.arange(n) * T
+    p_ref = (v * t)[:, None]
+    v_ref = np.full_like(p_ref, v)
+    model = x_drive()
+    measured, velocity = model.simulate(p_ref, v_ref, np.zeros_like(p_ref))
+    error = p_ref[:, 0] - measured[:, 0]
+    # v_cmd = v + kp e settles where e = 0; only the encoder's quantisation remains
+    assert np.abs(error[300:]).max() <= RES / 2 + 1e-12
+    assert velocity[-1, 0] == pytest.approx(v, rel=1e-6)
+    assert abs(model.state.position[0] - v * n * T) <= RES / 2  # the truth, within a count
+    # the start is the transient: the drive began at rest while the reference moved
+    assert np.abs(error).max() > 10 * RES
+
+
+def test_without_velocity_feed_forward_the_error_is_v_over_kp():
+    v = 0.05
+    p_ref = (v * np.arange(600) * T)[:, None]
+    model = x_drive(with_x_drive(velocity_ff=0.0))
+    measured, _ = model.simulate(p_ref, np.full_like(p_ref, v), np.zeros_like(p_ref))
+    error = p_ref[-100:, 0] - measured[-100:, 0]
+    # kp e = v in steady state: e = 0.05 / 50 = 1 mm (less half a period of travel,
+    # as the trapezoid integrates the lag: v T / 2 relative to the sampled reference)
+    assert error.mean() == pytest.approx(v / 50.0, abs=RES + v * T)
+    assert np.ptp(error) <= 2 * RES
+
+
+def test_quantisation_to_the_resolution():
+    model = DriveModel(MILL, T)
+    values = np.array([1.26e-7, -3.44e-7, 0.1234567891, 1.234567e-3])
+    q = model.quantise(values)
+    assert q[0] == pytest.approx(1e-7, abs=1e-20)
+    assert q[1] == pytest.approx(-3e-7, abs=1e-20)
+    assert q[2] == pytest.approx(0.1234568, abs=1e-15)
+    assert q[3] == pytest.approx(1.23e-3, abs=1e-15)  # spindle: 1e-5 rad steps
+    state = model.reset(np.array([0.01234567891, 0.0, -0.2, 3.14159265]))
+    assert state.position[0] == 0.01234567891  # the truth is not quantised
+    assert state.measured[0] == pytest.approx(0.0123457, abs=1e-15)
+    assert state.measured[3] == pytest.approx(3.14159, abs=1e-12)
+    assert np.all(state.velocity == 0.0)
+
+
+def test_limits_clamp_velocity_and_acceleration():
+    model = x_drive()
+    step(model, 1.0)  # a 1 m step: v_cmd 50 m/s -> clamped
+    dv = 1.5 * 9.8 * T  # 0.0147 m/s per step
+    assert model.state.velocity[0] == pytest.approx(dv, rel=1e-12)
+    assert model.state.position[0] == pytest.approx(0.5 * dv * T, rel=1e-12)
+    velocities = [model.state.velocity[0]]
+    for _ in range(200):
+        step(model, 1.0)
+        velocities.append(model.state.velocity[0])
+    velocities = np.array(velocities)
+    assert np.all(np.diff(velocities) <= dv * (1 + 1e-12))
+    assert velocities.max() <= 0.96 * (1 + 1e-12)
+    # the velocity loop converges on the clamped command: 1.2 * 0.8 m/s
+    assert velocities[-1] == pytest.approx(0.96, rel=1e-9)
+
+
+def test_negative_step_clamps_symmetrically():
+    model = x_drive()
+    step(model, -1.0)
+    assert model.state.velocity[0] == pytest.approx(-0.0147, rel=1e-12)
+
+
+def test_simulate_reports_the_reading_before_each_step():
+    model = x_drive()
+    p_ref = np.array([[0.0], [1e-5], [1e-5]])
+    measured, velocity = model.simulate(p_ref, np.zeros_like(p_ref), np.zeros_like(p_ref))
+    # row i is read before step i: the step to 1e-5 (row 1) shows from row 2 on
+    assert measured[:, 0] == pytest.approx([0.0, 0.0, 2e-7], abs=1e-18)
+    assert velocity[1, 0] == 0.0
+    assert velocity[2, 0] == pytest.approx(50.0 * 1e-5 * (1 - DECAY), rel=1e-12)
+
+
+def test_joints_are_independent():
+    model = DriveModel(MILL, T, ("x", "z"))
+    model.step(np.array([1e-5, 0.0]), np.zeros(2), np.zeros(2))
+    assert model.state.position[1] == 0.0 and model.state.position[0] > 0.0

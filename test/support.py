@@ -20,3 +20,16 @@ def cnc(tool: str, *args: str, timeout: float = 600) -> subprocess.CompletedProc
 
 def load_report(out: Path) -> dict:
     return json.loads((out / "report.json").read_text())
+
+
+START_DELAY_S = 0.2  # from a job's first 'running' status to its first setpoint
+
+
+def running_past(session, job_id: str, fraction: float) -> None:
+    """Spin until the machine's (simulated) time has run ``fraction`` of the job."""
+    def first_running() -> dict | None:
+        return next((s for s in session.recorder.statuses if s["job_id"] == job_id and s["state"] == "running"), None)
+    session.spin_until(lambda: first_running() is not None, 60, f"{job_id} never started")
+    status = first_running()
+    target = status["stamp_ns"] + int((START_DELAY_S + fraction * status["duration_s"]) * 1e9)
+    session.spin_until(lambda: session.recorder.sim_ns >= target, 60, f"{job_id} never got to {fraction}")

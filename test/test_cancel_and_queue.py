@@ -8,7 +8,7 @@ import numpy as np
 from cnc_planner.runner import Session
 from cnc_servo_bridge.recording import read_run
 
-from support import JOBS
+from support import running_past
 
 
 def job_text(job_id: str, x: float) -> str:
@@ -20,8 +20,7 @@ def job_text(job_id: str, x: float) -> str:
 def test_cancel_mid_move_stops_smoothly_and_next_job_runs(tmp_path):
     with Session("mill3", tmp_path / "bag") as session:
         session.submit(job_text("long", 200.0))  # 200 mm at 50 mm/s: 4 s
-        session.spin_until(lambda: any(s["job_id"] == "long" and s["state"] == "running" and s["progress"] > 0.2
-                                       for s in session.recorder.statuses), 60, "job never ran")
+        running_past(session, "long", 0.2)
         session.cancel("long")
         assert session.wait("long", 60)["state"] == "canceled"
         session.submit(job_text("after", 20.0))

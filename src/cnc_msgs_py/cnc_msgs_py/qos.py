@@ -24,4 +24,6 @@ JOINT_STATES = _reliable(topics.FEEDBACK_DEPTH)
 # Readers that only need the latest state (the planner's clock and position).
 LATEST = _reliable(1)
 DIAGNOSTICS = _reliable(10)
+INJECT_FAULT = _reliable(10)
+ALARM_RESET = _reliable(10)
 CLOCK = _reliable(topics.FEEDBACK_DEPTH)

@@ -8,6 +8,8 @@ JOB_EVENTS = "job_events"
 JOINT_TRAJECTORY = "joint_trajectory"
 JOINT_STATES = "joint_states"
 DIAGNOSTICS = "/diagnostics"
+INJECT_FAULT = "inject_fault"  # bridge fault injection (std_msgs/String, JSON)
+ALARM_RESET = "alarm_reset"  # acknowledges a latched bridge alarm (std_msgs/String: who/why)
 CLOCK = "/clock"
 
 # Depths: a chunk is ~0.1 s of setpoints; keep a few seconds of them queued.

@@ -22,18 +22,18 @@ from .streaming import NS, Chunk, SetpointStream
 from .timeline import Event, Plan
 
 START_MATCH = 1e-6  # m: a plan made from another position than the axes hold is redone
-REST_SPEED = 1e-6  # m/s or rad/s: feedback this slow counts as standing still
+REST_SPEED = 1e-4  # m/s or rad/s: feedback this slow counts as standing still (a settled
+# position loop dithers by an encoder count, a few um/s)
 
 
 @dataclass
 class Settings:
     period_ns: int = 1_000_000  # interpolation period
     chunk_points: int = 100
-    lookahead_ns: int = 500_000_000  # how far setpoints run ahead of the feedback
+    lookahead_ns: int = 300_000_000  # how far setpoints run ahead of the feedback; also
+    # the longest a cancel waits: a stop begins where the setpoints sent so far end
     start_delay_ns: int = 200_000_000  # from the feedback that starts a job to its first setpoint
     status_period_ns: int = 500_000_000  # progress updates on job_status
-    cancel_latency_ns: int = 50_000_000  # a stop starts this far after the request: beyond
-    # what the bridge may already have executed when the stop reaches it
 
 
 @dataclass
@@ -93,9 +93,14 @@ class Executive:
             self._stop(now_ns, "canceled", "canceled by request")
         return []
 
-    def abort(self, reason: str, now_ns: int, stop: bool = True) -> list[Status]:
-        """Abort the running job: stop it (or, if the bridge is gone, just end it)."""
+    def abort(self, reason: str, now_ns: int, stop: bool = True, raised_ns: int | None = None) -> list[Status]:
+        """Abort the running job: stop it, or just end it when the bridge has stopped the
+        axes itself or is gone. A fault ``raised_ns`` before the job's first setpoint
+        belongs to what ran before and is ignored."""
         if self.active is None or self.active.final:
+            return []
+        stream = self.active.stream
+        if raised_ns is not None and (stream is None or raised_ns < stream.start_ns):
             return []
         if stop:
             self._stop(now_ns, "aborted", reason)
@@ -108,7 +113,10 @@ class Executive:
         job = self.active
         job.final, job.reason = final, reason
         if job.stream is not None:
-            job.stream.stop_from(max(now_ns + self.settings.cancel_latency_ns, job.stream.start_ns), self.machine)
+            # Right after the last setpoint sent: the bridge cannot have passed it (it waits
+            # for setpoints rather than run dry), so the stop is never refused as late.
+            job.stream.stop_from(max(job.stream.served_until_ns + self.settings.period_ns, job.stream.start_ns),
+                                 self.machine)
 
     def feedback(self, positions: dict[str, float], velocities: dict[str, float] | None = None) -> None:
         """Joint states from the bridge. Plans start from the last commanded position;

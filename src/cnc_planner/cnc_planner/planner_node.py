@@ -6,7 +6,7 @@ import sys
 
 import rclpy
 from builtin_interfaces.msg import Duration, Time
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.signals import SignalHandlerOptions
@@ -43,7 +43,7 @@ class PlannerNode(Node):
         settings = Settings(
             period_ns=round(self.declare_parameter("interpolation_period", 0.001).value * NS),
             chunk_points=self.declare_parameter("chunk_points", 100).value,
-            lookahead_ns=round(self.declare_parameter("lookahead", 0.5).value * NS),
+            lookahead_ns=round(self.declare_parameter("lookahead", 0.3).value * NS),
         )
         self.feedback_timeout = self.declare_parameter("feedback_timeout", 2.0).value
         self.executive = Executive(machine, settings)
@@ -51,6 +51,7 @@ class PlannerNode(Node):
         self.status_pub = self.create_publisher(String, topics.JOB_STATUS, qos.JOB_STATUS)
         self.events_pub = self.create_publisher(String, topics.JOB_EVENTS, qos.JOB_EVENTS)
         self.trajectory_pub = self.create_publisher(JointTrajectory, topics.JOINT_TRAJECTORY, qos.JOINT_TRAJECTORY)
+        self.reset_pub = self.create_publisher(String, topics.ALARM_RESET, qos.ALARM_RESET)
         self.create_subscription(String, topics.JOB_GOAL, self.on_goal, qos.JOB_GOAL)
         self.create_subscription(String, topics.JOB_CANCEL, self.on_cancel, qos.JOB_CANCEL)
         self.create_subscription(JointState, topics.JOINT_STATES, self.on_feedback, qos.LATEST)
@@ -59,6 +60,8 @@ class PlannerNode(Node):
         self.wall = Clock(clock_type=ClockType.STEADY_TIME)
         self.last_feedback_wall = self.wall.now()
         self.create_timer(0.1, self.watch_feedback, clock=self.wall)
+        self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS)
+        self.create_timer(1.0, self.heartbeat, clock=self.wall)
         self.get_logger().info(f"planning for machine '{machine.name}' joints {self.joints}")
 
     def now_ns(self) -> int:
@@ -92,16 +95,35 @@ class PlannerNode(Node):
     def on_feedback(self, msg: JointState) -> None:
         self.last_feedback_wall = self.wall.now()
         self.executive.feedback(dict(zip(msg.name, msg.position)), dict(zip(msg.name, msg.velocity)))
-        self.latest_feedback_ns = max(self.latest_feedback_ns, msg.header.stamp.sec * NS + msg.header.stamp.nanosec)
+        # Not max(): a restarted bridge starts its clock again, and its time is the one that counts.
+        self.latest_feedback_ns = msg.header.stamp.sec * NS + msg.header.stamp.nanosec
         if self.trajectory_pub.get_subscription_count() == 0:
             return  # no bridge listening (yet): setpoints would be lost, so nothing starts
         self.publish(self.executive.tick(self.latest_feedback_ns))
 
     def on_diagnostics(self, msg: DiagnosticArray) -> None:
+        stamp = msg.header.stamp.sec * NS + msg.header.stamp.nanosec
         for status in msg.status:
             if status.level >= DiagnosticStatus.ERROR and status.name.startswith("cnc_servo_bridge"):
-                # The bridge stops the drives itself; the job ends here.
-                self.publish(Output(statuses=self.executive.abort(status.message, self.now_ns(), stop=False)))
+                # The bridge stops the drives itself; the job ends here, unless the alarm
+                # is an old one that the running job's first setpoints are clearing.
+                self.publish(Output(statuses=self.executive.abort(status.message, self.now_ns(), stop=False,
+                                                                  raised_ns=stamp)))
+                if self.executive.active is None:
+                    # The job it hit has ended (aborted): acknowledge, so the next one may run.
+                    self.reset_pub.publish(String(data="cnc_planner"))
+
+    def heartbeat(self) -> None:
+        """Tell the cell the planner is up, and what it is doing."""
+        active = self.executive.active
+        status = DiagnosticStatus(
+            level=DiagnosticStatus.OK, name="cnc_planner: executive", hardware_id=self.get_namespace(),
+            message=f"running {active.job_id}" if active else "idle",
+            values=[KeyValue(key="queued", value=str(len(self.executive.queue))),
+                    KeyValue(key="machine", value=self.executive.machine.name)])
+        msg = DiagnosticArray(status=[status])
+        msg.header.stamp = Time(sec=self.latest_feedback_ns // NS, nanosec=self.latest_feedback_ns % NS)
+        self.diag_pub.publish(msg)
 
     def watch_feedback(self) -> None:
         silent = (self.wall.now() - self.last_feedback_wall).nanoseconds / NS

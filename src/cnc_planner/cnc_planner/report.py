@@ -7,7 +7,6 @@ judge the recorded feedback (and, for comparison, the recorded commands).
 from __future__ import annotations
 
 import json
-from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np

@@ -11,6 +11,7 @@ import importlib
 import json
 import os
 import signal
+import struct
 import subprocess
 import sys
 import time
@@ -64,6 +65,14 @@ def _stamp_ns(msg) -> int:
     return msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
 
 
+def _header_stamp_ns(cdr: bytes) -> int:
+    """header.stamp of a serialized message that starts with a std_msgs/Header: after the
+    4-byte CDR encapsulation come sec (int32) and nanosec (uint32), little endian. Read
+    directly because every joint_states passes through here."""
+    sec, nanosec = struct.unpack_from("<iI", cdr, 4)
+    return sec * 1_000_000_000 + nanosec
+
+
 class Recorder(Node):
     """Records every CNC topic to the bag (raw CDR) and follows the job's status."""
 
@@ -72,6 +81,8 @@ class Recorder(Node):
         self.bag = bag
         self.statuses: list[dict] = []
         self.sim_ns = 0
+        self.feedback_ns = 0  # stamp of the last joint_states recorded
+        self.planner_heartbeats = 0  # planner diagnostics received (it is up and talking)
         self.goal_pub = self.create_publisher(String, topics.JOB_GOAL, qos.JOB_GOAL)
         for topic, msgtype in RECORDED.items():
             name = topic if topic.startswith("/") else f"{namespace}/{topic}"
@@ -81,9 +92,14 @@ class Recorder(Node):
         def write(data: bytes) -> None:
             if topic == "/clock":
                 self.sim_ns = _stamp_ns(deserialize_message(data, message_class(RECORDED["/clock"])))
+            elif topic == "joint_states":
+                self.feedback_ns = _header_stamp_ns(data)
             self.bag.write(name, self.sim_ns, data)
             if topic == "job_status":
                 self.statuses.append(json.loads(deserialize_message(data, String).data))
+            elif topic == "/diagnostics":
+                msg = deserialize_message(data, message_class(RECORDED["/diagnostics"]))
+                self.planner_heartbeats += any(s.name.startswith("cnc_planner") for s in msg.status)
         return write
 
     def ready(self) -> bool:
@@ -104,17 +120,18 @@ class Session:
         self.env = env or local_dds_env()
         os.environ.update({k: self.env[k] for k in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_DOMAIN_ID")})
         self.progress = progress
-        self.procs = {
-            "bridge": subprocess.Popen(node_command(
-                "cnc_servo_bridge.bridge_node", namespace,
-                {"machine": machine, "simulation": True, **(bridge_params or {})}), env=self.env),
-            "planner": subprocess.Popen(node_command(
-                "cnc_planner.planner_node", namespace, {"machine": machine, "use_sim_time": True}), env=self.env),
+        self.commands = {
+            "bridge": node_command("cnc_servo_bridge.bridge_node", namespace,
+                                   {"machine": machine, "simulation": True, **(bridge_params or {})}),
+            "planner": node_command("cnc_planner.planner_node", namespace,
+                                    {"machine": machine, "use_sim_time": True}),
         }
+        self.procs = {name: subprocess.Popen(cmd, env=self.env) for name, cmd in self.commands.items()}
         self.bag = BagWriter(bag_dir, {(t if t.startswith("/") else f"{namespace}/{t}"): m for t, m in RECORDED.items()})
         rclpy.init()
         self.recorder = Recorder(self.bag, namespace)
         self.cancel_pub = self.recorder.create_publisher(String, topics.JOB_CANCEL, qos.JOB_CANCEL)
+        self.fault_pub = self.recorder.create_publisher(String, topics.INJECT_FAULT, qos.INJECT_FAULT)
         self._shown = 0
 
     def __enter__(self) -> "Session":
@@ -128,11 +145,28 @@ class Session:
     def __exit__(self, *exc) -> None:
         self.close()
 
+    def kill(self, name: str) -> None:
+        """Kill a node the hard way (SIGKILL), as a crash would."""
+        proc = self.procs.pop(name)
+        proc.kill()
+        proc.wait(timeout=10)
+
+    def restart(self, name: str) -> None:
+        """Start a killed node again, with the same parameters, and wait until it talks."""
+        self.procs[name] = subprocess.Popen(self.commands[name], env=self.env)
+        if name == "planner":
+            seen = self.recorder.planner_heartbeats
+            self.spin_until(lambda: self.recorder.planner_heartbeats >= seen + 2, 30, "the planner did not come back")
+
     def submit(self, text: str) -> None:
         self.recorder.goal_pub.publish(String(data=text))
 
     def cancel(self, job_id: str) -> None:
         self.cancel_pub.publish(String(data=job_id))
+
+    def inject(self, joint: str, offset: float) -> None:
+        """Displace one axis of the emulated drives (fault injection)."""
+        self.fault_pub.publish(String(data=json.dumps({"joint": joint, "offset": offset})))
 
     def final_status(self, job_id: str) -> dict | None:
         return next((s for s in self.recorder.statuses if s["job_id"] == job_id and s["state"] in FINAL_STATES), None)
@@ -146,8 +180,8 @@ class Session:
     def settle(self, status: dict, seconds: float = SETTLE_S) -> None:
         """Record until a little after a final status: the recorder may still be working
         through queued feedback, and the drives' settling should show in the bag."""
-        end = max(status.get("stamp_ns", 0), self.recorder.sim_ns) + int(seconds * 1e9)
-        self.spin_until(lambda: self.recorder.sim_ns >= end, 60.0, "the bridge stopped publishing")
+        end = max(status.get("stamp_ns", 0), self.recorder.feedback_ns) + int(seconds * 1e9)
+        self.spin_until(lambda: self.recorder.feedback_ns >= end, 60.0, "the bridge stopped publishing")
 
     def spin_until(self, done: Callable[[], bool], timeout: float, what: str) -> None:
         deadline = time.monotonic() + timeout

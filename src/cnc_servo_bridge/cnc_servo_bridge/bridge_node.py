@@ -7,6 +7,7 @@ clock. In real-time mode it steps on a wall timer and stamps with the system clo
 """
 from __future__ import annotations
 
+import json
 import sys
 import time
 
@@ -19,6 +20,7 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
+from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory
 
 from cnc_msgs_py import qos, topics
@@ -54,6 +56,10 @@ class BridgeNode(Node):
         self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS)
         self.clock_pub = self.create_publisher(Clock, topics.CLOCK, qos.CLOCK) if self.simulation else None
         self.create_subscription(JointTrajectory, topics.JOINT_TRAJECTORY, self.on_trajectory, qos.JOINT_TRAJECTORY)
+        # Fault injection for tests and commissioning: {"joint": "x", "offset": 0.005} (m or rad).
+        self.create_subscription(String, topics.INJECT_FAULT, self.on_inject, qos.INJECT_FAULT)
+        self.create_subscription(String, topics.ALARM_RESET, self.on_reset, qos.ALARM_RESET)
+        self.reported_alarm = ""
         self.t_ns = 0 if self.simulation else self.get_clock().now().nanoseconds // self.period_ns * self.period_ns
         self.steps = 0
         self.rejected = ""
@@ -73,6 +79,18 @@ class BridgeNode(Node):
         except (SetpointError, ValueError) as err:
             self.rejected = f"refused setpoints: {err}"
             self.get_logger().error(self.rejected)
+            self.publish_diagnostics()
+
+    def on_inject(self, msg: String) -> None:
+        try:
+            fault = json.loads(msg.data)
+            self.loop.inject(str(fault["joint"]), float(fault["offset"]))
+        except (json.JSONDecodeError, KeyError, TypeError, ValueError) as err:
+            self.get_logger().error(f"inject_fault: expected {{\"joint\": name, \"offset\": number}} ({err})")
+
+    def on_reset(self, msg: String) -> None:
+        if self.loop.alarm and self.loop.reset_alarm():
+            self.get_logger().info(f"alarm reset by {msg.data or 'request'}")
             self.publish_diagnostics()
 
     def run(self) -> None:
@@ -110,7 +128,7 @@ class BridgeNode(Node):
             self.clock_pub.publish(Clock(clock=stamp(feedback.stamp_ns)))
         if self.steps % self.publish_every == 0:
             self.publish_feedback(feedback)
-        if self.steps % 100 == 0:
+        if self.steps % 100 == 0 or self.loop.alarm != self.reported_alarm:
             self.publish_diagnostics()
         self.steps += 1
         self.t_ns += self.period_ns
@@ -131,6 +149,9 @@ class BridgeNode(Node):
             + [KeyValue(key=f"max_following_error.{j}", value=f"{e:.9f}")
                for j, e in zip(self.joints, self.loop.max_following_error)],
         )
+        if self.loop.alarm and self.loop.alarm != self.reported_alarm:
+            self.get_logger().error(f"alarm: {self.loop.alarm}")
+        self.reported_alarm = self.loop.alarm
         msg = DiagnosticArray(status=[status])
         msg.header.stamp = stamp(self.t_ns)
         self.diag_pub.publish(msg)

@@ -52,11 +52,16 @@ class ServoLoop:
 
     def accept(self, names: list[str], times_ns: np.ndarray, p, v, a, now_ns: int) -> None:
         """Validate and buffer a chunk. Raises SetpointError (the diagnostic) if refused."""
-        if self._stop is not None:
-            raise SetpointError(f"stopping after alarm: {self.alarm}")
+        if self.alarm:
+            raise SetpointError(f"alarm latched ({self.alarm}): waiting for alarm_reset")
         setpoints = self.buffer.validate(names, times_ns, p, v, a, now_ns, self.reference[:2])
         self.buffer.insert(setpoints)
-        self.alarm = ""  # a valid new trajectory after a completed stop acknowledges it
+
+    def reset_alarm(self) -> bool:
+        """Acknowledge a latched alarm once the axes have stopped; True if it cleared."""
+        if self._stop is None:
+            self.alarm = ""
+        return not self.alarm
 
     def starved(self, t_ns: int) -> bool:
         """Moving, and the buffer does not reach t: the loop would have to stop."""
@@ -72,13 +77,29 @@ class ServoLoop:
         error = reference[0] - self.drives.state.measured
         feedback = Feedback(t_ns, self.drives.state.measured.copy(), self.drives.state.velocity.copy(), error)
         self.max_following_error = np.maximum(self.max_following_error, np.abs(error))
+        if self._stop is None:
+            self._check(t_ns, error, feedback.positions)
+        self.drives.step(*reference)
+        return feedback
+
+    def _check(self, t_ns: int, error: np.ndarray, measured: np.ndarray) -> None:
+        """Following error and soft limits, judged on what the encoders read."""
         tripped = np.argwhere(np.abs(error) > self.drives.following_error_limit)
-        if len(tripped) and self._stop is None:
+        if len(tripped):
             j = tripped[0][0]
             self._raise(t_ns, f"following error on {self.joints[j]}: {abs(error[j]):.6f} exceeds "
                               f"{self.drives.following_error_limit[j]:.6f}")
-        self.drives.step(*reference)
-        return feedback
+            return
+        outside = np.argwhere((measured < self.buffer.lo) | (measured > self.buffer.hi))
+        if len(outside):
+            j = outside[0][0]
+            self._raise(t_ns, f"soft limit: {self.joints[j]} at {measured[j]:.6f} is outside its travel")
+
+    def inject(self, joint: str, offset: float) -> None:
+        """Fault injection: displace one axis (a crash, a slipping coupling) by ``offset``."""
+        if joint not in self.joints:
+            raise ValueError(f"inject_fault: unknown joint '{joint}'")
+        self.drives.state.position[self.joints.index(joint)] += offset
 
     def _reference_at(self, t_ns: int):
         if self._stop is not None:

@@ -2,6 +2,16 @@
 
 One YAML file per machine in ``config/machines/`` (SI units) feeds both the planner
 and the servo bridge, so no limit or joint name is written twice.
+
+The optional ``kinematics:`` block holds the rotary geometry of the 5-axis layouts
+(lengths in m, machine coordinates with every rotary axis at 0):
+
+- ``pivot: [x, y, z]``: on ``5ax_table_table`` the point where the A axis (parallel
+  to X) meets the C axis (parallel to Z); on ``5ax_head_table`` a point on the C
+  table's axis (its z does not matter). Default [0, 0, 0].
+- ``pivot_length``: on ``5ax_head_table`` the distance from the B swivel axis down to
+  the spindle nose along the tool axis; the linear axes read the spindle nose
+  position at B = 0. Default 0.
 """
 from __future__ import annotations
 
@@ -12,7 +22,7 @@ from pathlib import Path
 
 import yaml
 
-LAYOUTS = ("mill3", "lathe")
+LAYOUTS = ("mill3", "lathe", "lathe_y", "5ax_table_table", "5ax_head_table")
 AXIS_TYPES = ("linear", "rotary", "continuous")
 SPINDLE = "spindle"
 # Joint names on the topics, in this order whenever a machine has them.
@@ -55,6 +65,14 @@ class Drive:
 
 
 @dataclass(frozen=True)
+class KinematicParams:
+    """Rotary-axis geometry of the 5-axis layouts (m); see the module docstring."""
+
+    pivot: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    pivot_length: float = 0.0
+
+
+@dataclass(frozen=True)
 class Machine:
     """A machine: ordered axes (joint names on the topics) and one drive per axis."""
 
@@ -62,6 +80,7 @@ class Machine:
     layout: str
     axes: dict[str, Axis]
     drives: dict[str, Drive]
+    kinematics: KinematicParams = KinematicParams()
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -146,6 +165,26 @@ def _parse_drive(spec: object, where: str) -> Drive:
     )
 
 
+def _parse_kinematics(spec: object, where: str) -> KinematicParams:
+    if spec is None:
+        return KinematicParams()
+    if not isinstance(spec, dict):
+        raise MachineError(f"{where}: expected a mapping")
+    unknown = [k for k in spec if k not in ("pivot", "pivot_length")]
+    if unknown:
+        raise MachineError(f"{where}.{unknown[0]}: unknown key (pivot, pivot_length)")
+    pivot = spec.get("pivot", [0.0, 0.0, 0.0])
+    if not isinstance(pivot, list) or len(pivot) != 3:
+        raise MachineError(f"{where}.pivot: expected [x, y, z] in m, got {pivot!r}")
+    length = _number(spec.get("pivot_length", 0.0), f"{where}.pivot_length", positive=False)
+    if length < 0:
+        raise MachineError(f"{where}.pivot_length: must be >= 0, got {length!r}")
+    return KinematicParams(
+        pivot=tuple(_number(v, f"{where}.pivot[{i}]", positive=False) for i, v in enumerate(pivot)),
+        pivot_length=length,
+    )
+
+
 def parse_machine(doc: object, source: str = "machine") -> Machine:
     """Build a Machine from a parsed YAML document; errors name the offending field."""
     if not isinstance(doc, dict):
@@ -168,7 +207,9 @@ def parse_machine(doc: object, source: str = "machine") -> Machine:
     if missing:
         raise MachineError(f"{source}: drive.{missing[0]}: every axis needs a drive model")
     drives = {n: _parse_drive(drive_spec[n], f"{source}: drive.{n}") for n in names}
-    return Machine(name=str(doc.get("name", source)), layout=layout, axes=axes, drives=drives)
+    kinematics = _parse_kinematics(doc.get("kinematics"), f"{source}: kinematics")
+    return Machine(name=str(doc.get("name", source)), layout=layout, axes=axes, drives=drives,
+                   kinematics=kinematics)
 
 
 def load_machine(name_or_path: str) -> Machine:

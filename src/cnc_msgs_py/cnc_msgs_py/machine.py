@@ -81,6 +81,11 @@ class Machine:
     axes: dict[str, Axis]
     drives: dict[str, Drive]
     kinematics: KinematicParams = KinematicParams()
+    home: tuple[float, ...] = ()  # where the axes stand at power-up, in joint order (0 if empty)
+
+    @property
+    def home_position(self) -> tuple[float, ...]:
+        return self.home or tuple(0.0 for _ in self.axes)
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -209,7 +214,23 @@ def parse_machine(doc: object, source: str = "machine") -> Machine:
     drives = {n: _parse_drive(drive_spec[n], f"{source}: drive.{n}") for n in names}
     kinematics = _parse_kinematics(doc.get("kinematics"), f"{source}: kinematics")
     return Machine(name=str(doc.get("name", source)), layout=layout, axes=axes, drives=drives,
-                   kinematics=kinematics)
+                   kinematics=kinematics, home=_parse_home(doc.get("home"), axes, f"{source}: home"))
+
+
+def _parse_home(spec: object, axes: dict[str, Axis], where: str) -> tuple[float, ...]:
+    """Optional power-up position {joint: value}; joints not named start at 0."""
+    if spec is None:
+        return ()
+    if not isinstance(spec, dict):
+        raise MachineError(f"{where}: expected a mapping of joint to position")
+    unknown = [k for k in spec if k not in axes]
+    if unknown:
+        raise MachineError(f"{where}.{unknown[0]}: not an axis of this machine")
+    home = tuple(_number(spec.get(n, 0.0), f"{where}.{n}", positive=False) for n in axes)
+    for name, value in zip(axes, home):
+        if not axes[name].within_travel(value):
+            raise MachineError(f"{where}.{name}: {value} lies outside the axis travel")
+    return home
 
 
 def load_machine(name_or_path: str) -> Machine:

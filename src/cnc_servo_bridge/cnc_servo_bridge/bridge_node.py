@@ -49,7 +49,7 @@ class BridgeNode(Node):
         self.underrun_timeout = self.declare_parameter("underrun_timeout", 1.0).value
         # Few steps per callback so that setpoint chunks (a stop!) are taken between batches.
         self.max_steps = self.declare_parameter("steps_per_callback", 10).value
-        start = self.declare_parameter("start_position", [0.0] * len(machine.joint_names)).value
+        start = self.declare_parameter("start_position", list(machine.home_position)).value
         self.loop = ServoLoop(machine, self.period_ns, np.asarray(start, dtype=float))
         self.joints = list(machine.joint_names)
         self.state_pub = self.create_publisher(JointState, topics.JOINT_STATES, qos.JOINT_STATES)

@@ -94,7 +94,8 @@ class Recorder(Node):
                 self.sim_ns = _stamp_ns(deserialize_message(data, message_class(RECORDED["/clock"])))
             elif topic == "joint_states":
                 self.feedback_ns = _header_stamp_ns(data)
-            self.bag.write(name, self.sim_ns, data)
+            # Bag time: the machine's time (sim time, or the wall clock in real-time mode).
+            self.bag.write(name, max(self.sim_ns, self.feedback_ns), data)
             if topic == "job_status":
                 self.statuses.append(json.loads(deserialize_message(data, String).data))
             elif topic == "/diagnostics":
@@ -103,8 +104,8 @@ class Recorder(Node):
         return write
 
     def ready(self) -> bool:
-        """Planner listening for goals and bridge publishing the clock."""
-        return self.goal_pub.get_subscription_count() >= 2 and self.sim_ns > 0
+        """Planner listening for goals and bridge publishing feedback."""
+        return self.goal_pub.get_subscription_count() >= 2 and self.feedback_ns > 0
 
 
 class Session:
@@ -116,15 +117,15 @@ class Session:
 
     def __init__(self, machine: str, bag_dir: Path, *, namespace: str = "/cnc",
                  env: dict[str, str] | None = None, progress: Callable[[dict], None] | None = None,
-                 bridge_params: dict[str, object] | None = None) -> None:
+                 bridge_params: dict[str, object] | None = None, simulation: bool = True) -> None:
         self.env = env or local_dds_env()
         os.environ.update({k: self.env[k] for k in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_DOMAIN_ID")})
         self.progress = progress
         self.commands = {
             "bridge": node_command("cnc_servo_bridge.bridge_node", namespace,
-                                   {"machine": machine, "simulation": True, **(bridge_params or {})}),
+                                   {"machine": machine, "simulation": simulation, **(bridge_params or {})}),
             "planner": node_command("cnc_planner.planner_node", namespace,
-                                    {"machine": machine, "use_sim_time": True}),
+                                    {"machine": machine, "use_sim_time": simulation}),
         }
         self.procs = {name: subprocess.Popen(cmd, env=self.env) for name, cmd in self.commands.items()}
         self.bag = BagWriter(bag_dir, {(t if t.startswith("/") else f"{namespace}/{t}"): m for t, m in RECORDED.items()})

@@ -9,9 +9,15 @@ STAMP   := $(VENV)/.installed
 DEMO_JOB ?= config/jobs/drill_row.yaml
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 
-.PHONY: setup demo test bench clean
+.PHONY: setup browser demo test bench bench-peer clean
 
-setup: $(STAMP)
+setup: $(STAMP) browser
+
+# Headless Chromium (Debian's package) renders report.html in the tests; installed once.
+browser:
+	@command -v chromium >/dev/null 2>&1 || { echo "installing chromium (apt)"; \
+	  export DEBIAN_FRONTEND=noninteractive; apt-get update -qq >/dev/null && \
+	  apt-get install -y -qq --no-install-recommends chromium fonts-liberation >/dev/null; }
 
 $(STAMP): requirements.txt src/cnc_msgs_py/setup.py src/cnc_planner/setup.py src/cnc_servo_bridge/setup.py
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -28,6 +34,11 @@ test: setup
 
 bench: setup
 	$(PY) bench/run_all.py
+
+# Side by side with LinuxCNC 2.9 (installs Debian's linuxcnc-uspace with apt-get if missing,
+# runs it as an unprivileged user): not part of `make test`; about 6 minutes.
+bench-peer: setup
+	$(PY) bench/peer/run.py
 
 clean:
 	rm -rf $(VENV) runs build install log

@@ -17,6 +17,8 @@ from cnc_msgs_py.machine import MachineError, load_machine
 from cnc_msgs_py.schema import JobError
 
 from .jobs import plan_job
+from .progress import Progress, job_totals
+from .report_page import write_report_page
 
 
 def _fail(tool: str, message: str, code: int = 2) -> int:
@@ -34,16 +36,6 @@ def _rejected_report(job_id: str, reason: str) -> dict:
             "max_following_error": {}, "setpoints": 0, "chunks": 0, "chunks_lost": 0}
 
 
-def _show(status: dict) -> None:
-    state = status["state"]
-    if state == "running":
-        print(f"  {status['job_id']}: {100 * status['progress']:5.1f}%  {status['elapsed_s']:7.2f} / "
-              f"{status['duration_s']:.2f} s  {status.get('phase', '')}", flush=True)
-    else:
-        reason = f" ({status['reason']})" if status.get("reason") else ""
-        print(f"  {status['job_id']}: {state}{reason}", flush=True)
-
-
 def run_main(argv: list[str] | None = None) -> int:
     """cnc-run JOB [--out DIR]: run a job on the emulated machine and report on it."""
     parser = argparse.ArgumentParser(prog="cnc-run", description=run_main.__doc__)
@@ -59,7 +51,10 @@ def run_main(argv: list[str] | None = None) -> int:
         machine = load_machine(doc.get("machine") if isinstance(doc.get("machine"), str) else "")
     except (JobError, MachineError) as err:
         reason = f"machine: {err}" if isinstance(err, MachineError) else str(err)
-        _write_json(out / "report.json", _rejected_report(job_id_of(locals().get("doc")), reason))
+        doc = locals().get("doc")
+        report = _rejected_report(job_id_of(doc), reason)
+        _write_json(out / "report.json", report)
+        write_report_page(report, [], out / "report.html", job=doc if isinstance(doc, dict) else None)
         return _fail("cnc-run", f"rejected: {reason}")
     from .plots import write_plots
     from .report import build_report  # rclpy-free, but only needed past this point
@@ -67,16 +62,21 @@ def run_main(argv: list[str] | None = None) -> int:
     from cnc_servo_bridge.recording import read_run
 
     print(f"cnc-run: {args.job} on '{machine.name}' -> {out}", flush=True)
+    progress = Progress(totals=job_totals(doc))
     try:
         status = run_job(json.dumps(doc), job_id_of(doc), machine.name, out / "bag",
-                         timeout=args.timeout, progress=_show)
+                         timeout=args.timeout, progress=progress)
     except RunError as err:
+        progress.close()
         return _fail("cnc-run", str(err), 3)
+    progress.close()
     run = read_run(out / "bag")
     report = build_report(run)
     _write_json(out / "report.json", report)
-    write_plots(run, report, out / "plots")
+    plots = write_plots(run, report, out / "plots")
+    page = write_report_page(report, plots, out / "report.html", job=doc)
     print(summary(report))
+    print(f"  report {page}")
     return 0 if status["state"] == "succeeded" else 1
 
 

@@ -1,0 +1,314 @@
+"""A cell controller's client for the CNC planner: submit, follow, wait for, cancel jobs.
+
+``CncClient`` is a small task API over an rclpy node you own, in the manner of
+nav2_simple_commander (in snake_case, without a polling loop or thread of its own)::
+
+    import rclpy
+    from cnc_msgs_py.client import CncClient
+
+    rclpy.init()
+    node = rclpy.create_node("cell_controller")
+    client = CncClient(node, namespace="/cnc")
+    client.on_progress(lambda s: print(s["job_id"], s["state"], f"{100 * s['progress']:.0f}%"))
+    job_id = client.submit("config/jobs/drill_row.yaml")   # dict, YAML/JSON text or a file
+    final = client.wait(job_id, timeout=120.0)              # spins the node until final
+    print(final["state"], final["cycle_time_s"])
+
+A job is validated whole with the planner's own ``parse_job`` before it is sent, so a bad
+job raises ``JobError`` naming the field and nothing reaches ``job_goal``. Statuses are
+``cnc_status/1`` documents (as dicts); ``wait`` and ``submit`` spin the node (or the
+executor given), everything else only reads what the node's callbacks have received.
+
+``cnc-submit JOB`` wraps the client for the shell, against nodes already running (``ros2
+run`` from a colcon install, or the ``cnc-planner``/``cnc-bridge`` console scripts).
+
+rclpy is imported only when a client is made: the rest of cnc_msgs_py stays ROS-free.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+import yaml
+
+from . import topics
+from .job import load_job_file, parse_job
+from .schema import JobError
+from .status import FINAL_STATES, Status, encode_cancel
+
+CONNECT_TIMEOUT_S = 10.0  # how long submit waits for a planner to listen on job_goal
+MATCH_OTHERS_S = 1.0  # then, at most this long for the other listeners on job_goal to match
+
+
+class CncClientError(RuntimeError):
+    """The planner could not be reached (no planner on the namespace's job_goal)."""
+
+
+def load_job(job: dict | str | Path) -> dict:
+    """A job document from a dict, YAML/JSON text or a file path, validated whole.
+
+    A string holding a newline, a '{' first or a 'key: value' pair is document text;
+    any other string is a file path.
+
+    Raises:
+        JobError: names the offending field and the reason (or the unreadable file).
+    """
+    if isinstance(job, Path):
+        doc = load_job_file(job)
+    elif isinstance(job, str):
+        text = job.strip()
+        if "\n" in text or text.startswith("{") or ": " in text:
+            try:
+                doc = yaml.safe_load(text)
+            except yaml.YAMLError as err:
+                raise JobError("", f"job text is not valid YAML/JSON ({err})") from err
+        else:
+            doc = load_job_file(text)
+    else:
+        doc = job
+    if not isinstance(doc, dict):
+        raise JobError("", "a job document must be a mapping")
+    parse_job(doc)
+    return doc
+
+
+class CncClient:
+    """Submit jobs to the planner under ``namespace`` and follow them over job_status.
+
+    Args:
+        node: an rclpy Node you own; the client adds two publishers and a subscription.
+        namespace: the planner's namespace (topics ``<namespace>/job_goal`` etc.).
+        executor: the executor ``node`` is spun by, if any; default rclpy's global one.
+    """
+
+    def __init__(self, node: Any, namespace: str = topics.NAMESPACE, executor: Any = None) -> None:
+        from std_msgs.msg import String
+
+        from . import qos
+
+        self.node = node
+        self.executor = executor
+        self.namespace = "/" + namespace.strip("/") if namespace.strip("/") else ""
+        self.goal_topic = f"{self.namespace}/{topics.JOB_GOAL}"
+        self.cancel_topic = f"{self.namespace}/{topics.JOB_CANCEL}"
+        self.status_topic = f"{self.namespace}/{topics.JOB_STATUS}"
+        self._string = String
+        self._goal_pub = node.create_publisher(String, self.goal_topic, qos.JOB_GOAL)
+        self._cancel_pub = node.create_publisher(String, self.cancel_topic, qos.JOB_CANCEL)
+        self._status_sub = node.create_subscription(String, self.status_topic, self._on_status, qos.JOB_STATUS)
+        self._statuses: dict[str, dict] = {}  # latest status per job submitted here
+        self._submitted: set[str] = set()
+        self._callbacks: list[Callable[[dict], None]] = []
+
+    # -- the task API -------------------------------------------------------------------
+
+    def submit(self, job: dict | str | Path, connect_timeout: float = CONNECT_TIMEOUT_S) -> str:
+        """Validate a job and send it on job_goal; returns its job_id.
+
+        Waits (spinning the node) up to ``connect_timeout`` s for a planner to listen.
+
+        Raises:
+            JobError: the job is invalid (nothing is sent); names the field.
+            CncClientError: no planner listens on ``<namespace>/job_goal``.
+        """
+        doc = load_job(job)
+        job_id = doc["job_id"]
+        self.wait_for_planner(connect_timeout)
+        self._statuses.pop(job_id, None)
+        self._submitted.add(job_id)
+        self._goal_pub.publish(self._string(data=json.dumps(doc)))
+        return job_id
+
+    def wait(self, job_id: str, timeout: float | None = None) -> dict:
+        """Spin until the job is final (rejected, succeeded, aborted, canceled); its status.
+
+        Raises:
+            TimeoutError: the job was not final within ``timeout`` seconds.
+        """
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while not self._final(job_id):
+            left = None if deadline is None else deadline - time.monotonic()
+            if left is not None and left <= 0:
+                last = self._statuses.get(job_id)
+                seen = f" (last seen: {last['state']}, {100 * last.get('progress', 0):.0f}%)" if last else ""
+                raise TimeoutError(f"job '{job_id}' did not end within {timeout:g} s{seen}")
+            self._spin_once(0.1 if left is None else min(0.1, left))
+        return dict(self._statuses[job_id])
+
+    def cancel(self, job_id: str) -> None:
+        """Ask the planner to cancel a queued or running job (a jerk-limited stop)."""
+        deadline = time.monotonic() + 2.0
+        while self._cancel_pub.get_subscription_count() == 0 and time.monotonic() < deadline:
+            self._spin_once(0.05)
+        self._cancel_pub.publish(self._string(data=encode_cancel(job_id)))
+
+    def status(self, job_id: str) -> dict | None:
+        """The latest status received for a job submitted here, or None (does not spin)."""
+        latest = self._statuses.get(job_id)
+        return dict(latest) if latest is not None else None
+
+    def on_progress(self, callback: Callable[[dict], None]) -> None:
+        """Call ``callback(status)`` with every status of the jobs submitted here."""
+        self._callbacks.append(callback)
+
+    def wait_for_planner(self, timeout: float = CONNECT_TIMEOUT_S) -> None:
+        """Spin until a planner listens on job_goal and publishes job_status.
+
+        A recorder may listen on job_goal too, so the listener must be a node that also
+        publishes job_status.
+
+        Raises:
+            CncClientError: none did within ``timeout`` seconds.
+        """
+        deadline = time.monotonic() + timeout
+        while not self._planner_listening():
+            if time.monotonic() > deadline:
+                raise CncClientError(f"no planner listens on {self.goal_topic} (waited {timeout:g} s); "
+                                     f"start one, or check --namespace and ROS_DOMAIN_ID")
+            self._spin_once(0.05)
+        # Best effort for the other listeners the graph already shows (a recorder):
+        # job_goal keeps no history, so a goal sent before they are matched is missing
+        # from their recording.
+        deadline = time.monotonic() + MATCH_OTHERS_S
+        while (self._goal_pub.get_subscription_count() < len(self.node.get_subscriptions_info_by_topic(self.goal_topic))
+               and time.monotonic() < deadline):
+            self._spin_once(0.02)
+
+    # -- internals ----------------------------------------------------------------------
+
+    def _planner_listening(self) -> bool:
+        if self._goal_pub.get_subscription_count() == 0:
+            return False
+        publishers = {(i.node_namespace, i.node_name) for i in self.node.get_publishers_info_by_topic(self.status_topic)}
+        return any((i.node_namespace, i.node_name) in publishers
+                   for i in self.node.get_subscriptions_info_by_topic(self.goal_topic))
+
+    def _final(self, job_id: str) -> bool:
+        latest = self._statuses.get(job_id)
+        return latest is not None and latest["state"] in FINAL_STATES
+
+    def _on_status(self, msg: Any) -> None:
+        try:
+            doc = dataclasses.asdict(Status.decode(msg.data))
+        except (ValueError, TypeError):
+            self.node.get_logger().warning(f"ignoring a malformed status on {self.status_topic}: {msg.data[:80]}")
+            return
+        job_id = doc["job_id"]
+        if job_id not in self._submitted:
+            return  # another controller's job, or a latched status from before
+        if self._final(job_id):
+            return  # a job is final once; later copies (re-delivered latched ones) change nothing
+        self._statuses[job_id] = dict(doc)
+        for callback in self._callbacks:
+            callback(dict(doc))
+
+    def _spin_once(self, timeout: float) -> None:
+        if self.executor is not None:
+            self.executor.spin_once(timeout_sec=timeout)
+        else:
+            import rclpy
+
+            rclpy.spin_once(self.node, timeout_sec=timeout)
+
+
+# -- cnc-submit -----------------------------------------------------------------------
+
+
+def main(argv: list[str] | None = None) -> int:
+    """cnc-submit JOB: send a job to running CNC nodes and wait for its final status."""
+    parser = argparse.ArgumentParser(
+        prog="cnc-submit", description=main.__doc__,
+        epilog="Exit codes: 0 succeeded (or canceled as asked by --cancel-after), 1 rejected, aborted or "
+               "canceled, 2 bad job or arguments, 3 no planner or timeout. The final status (cnc_status/1, "
+               "JSON) is printed on stdout; progress goes to stderr.")
+    parser.add_argument("job", help="job document: a YAML or JSON file")
+    parser.add_argument("--namespace", default=topics.NAMESPACE, help="the nodes' namespace (default /cnc)")
+    parser.add_argument("--timeout", type=float, default=600.0, help="wall-clock limit for the job (s)")
+    parser.add_argument("--cancel-after", type=float, default=None, metavar="S",
+                        help="cancel the job S seconds (wall clock) after sending it")
+    args = parser.parse_args(argv)
+    for name in ("timeout", "cancel_after"):
+        value = getattr(args, name)
+        if value is not None and not value > 0:
+            return _fail(f"--{name.replace('_', '-')}: must be > 0 s, got {value:g}")
+    try:
+        doc = load_job(Path(args.job))
+    except JobError as err:
+        return _fail(f"{args.job}: {err}" if err.field else str(err))
+    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.signals import SignalHandlerOptions
+
+    # Python's own SIGINT handling: Ctrl-C raises KeyboardInterrupt and the node still
+    # works, so the job can be canceled on the way out.
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node(f"cnc_submit_{os.getpid()}")
+    client = CncClient(node, args.namespace)
+    job_id = doc["job_id"]
+    shown = _progress_printer()
+    client.on_progress(shown)
+    try:
+        client.submit(doc)
+        print(f"cnc-submit: sent {job_id} to {client.goal_topic}", file=sys.stderr, flush=True)
+        if args.cancel_after is not None:
+            try:
+                final = client.wait(job_id, args.cancel_after)
+            except TimeoutError:
+                client.cancel(job_id)
+                final = None
+            final = final or client.wait(job_id, args.timeout)
+        else:
+            final = client.wait(job_id, args.timeout)
+    except (CncClientError, TimeoutError) as err:
+        return _fail(str(err), 3, cleanup=lambda: _shutdown(node))
+    except (KeyboardInterrupt, ExternalShutdownException):
+        try:
+            client.cancel(job_id)
+        finally:
+            _shutdown(node)
+        return _fail(f"interrupted: asked the planner to cancel {job_id}", 130)
+    getattr(shown, "close", lambda: None)()
+    print(json.dumps(final))
+    _shutdown(node)
+    if final["state"] == "succeeded" or (final["state"] == "canceled" and args.cancel_after is not None):
+        return 0
+    return 1
+
+
+def _progress_printer() -> Callable[[dict], None]:
+    """cnc-run's progress display on stderr when cnc_planner is installed, else plain lines."""
+    try:
+        from cnc_planner.progress import Progress  # optional: cnc_msgs_py does not depend on it
+
+        return Progress(sys.stderr)
+    except ImportError:
+        def show(status: dict) -> None:
+            if status["state"] != "running":
+                print(f"  {status['job_id']}: {status['state']}", file=sys.stderr, flush=True)
+        return show
+
+
+def _shutdown(node: Any) -> None:
+    import rclpy
+
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
+def _fail(message: str, code: int = 2, cleanup: Callable[[], None] | None = None) -> int:
+    if cleanup is not None:
+        cleanup()
+    print(f"cnc-submit: {message}", file=sys.stderr)
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

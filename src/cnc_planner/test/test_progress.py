@@ -1,0 +1,113 @@
+"""cnc-run's progress display: a bar redrawn in place on a terminal, sparse lines in a log."""
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+from cnc_msgs_py.job import load_job_file
+from cnc_planner.progress import Progress, bar, bar_text, counts_text, job_totals, status_text
+
+JOBS = Path(__file__).resolve().parents[3] / "config" / "jobs"
+
+
+class Clock:
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+def running(progress: float, duration: float = 10.0, **detail: int) -> dict:
+    return {"job_id": "j1", "state": "running", "progress": progress, "phase": "S2",
+            "elapsed_s": progress * duration, "duration_s": duration, "detail": detail}
+
+
+def test_counts_name_holes_and_passes_against_the_plan():
+    assert counts_text({"S1": 3, "S2": 3, "job_start": 1}, {"S1": 5}) == "hole 3/5"
+    assert counts_text({"pass": 2}, {"pass": 8}) == "pass 2/8"
+    assert counts_text({"thread_pass": 4}) == "thread pass 4"
+    assert counts_text({}, {"S1": 5}) == "hole 0/5"  # nothing passed yet, but the total is known
+    assert counts_text({"rapid": 2}) == ""
+
+
+def test_bar_fills_with_the_fraction_and_stays_in_bounds():
+    assert bar(0.0, 10) == "[..........]"
+    assert bar(0.5, 10) == "[#####.....]"
+    assert bar(1.7, 10) == "[##########]"
+    assert bar(-1, 10) == "[..........]"
+
+
+def test_lines_carry_progress_counts_and_simulated_vs_job_time():
+    line = status_text(running(0.45, S1=3), {"S1": 5})
+    assert "45.0%" in line and "hole 3/5" in line and "sim 4.50/10.00 s" in line and "S2" in line
+    assert status_text({"job_id": "j1", "state": "rejected", "reason": "drill.depth: must be > 0"}) == \
+        "  j1: rejected (drill.depth: must be > 0)"
+    assert "succeeded, 3.55 s" in status_text({"job_id": "j1", "state": "succeeded", "cycle_time_s": 3.552})
+    assert len(bar_text(running(0.3, **{"pass": 1}), width=40)) <= 39
+    # On an 80-column terminal the whole line fits: the bar gives way.
+    line = bar_text({**running(0.83, duration=12.72, thread_pass=6), "job_id": "thread-m12-demo"},
+                    {"thread_pass": 7}, width=80)
+    assert len(line) <= 79 and line.endswith("thread pass 6/7  sim 10.56/12.72 s  S2"), line
+    assert "[########" in line and line.index("]") - line.index("[") - 1 >= 10
+
+
+def test_terminal_redraws_one_line_in_place_and_ends_it():
+    out, clock = io.StringIO(), Clock()
+    show = Progress(out, tty=True, totals={"pass": 8}, clock=clock, width=100)
+    show({"job_id": "j1", "state": "accepted"})
+    for k in range(20):
+        clock.t += 0.5
+        show(running(k / 20, **{"pass": k // 3}))
+    show({"job_id": "j1", "state": "succeeded", "cycle_time_s": 10.0})
+    text = out.getvalue()
+    lines = text.split("\n")
+    assert lines[0] == "  j1: accepted"
+    # Every running status redrew the same line: 20 carriage returns, no new lines.
+    assert lines[1].count("\r") == 21 and "pass 6/8" in lines[1]
+    assert lines[1].split("\r")[-1].rstrip() == "  j1: succeeded, 10.00 s"  # the bar, overwritten
+    assert lines[2] == "" and len(lines) == 3
+
+
+def test_terminal_redraw_is_throttled():
+    out, clock = io.StringIO(), Clock()
+    show = Progress(out, tty=True, clock=clock)
+    for k in range(100):
+        clock.t += 0.01
+        show(running(k / 100))
+    assert 5 <= out.getvalue().count("\r") <= 11  # ~ one per 0.1 s
+    show.close()
+    assert out.getvalue().endswith("\n")
+
+
+def test_log_gets_at_most_one_line_per_ten_percent():
+    out, clock = io.StringIO(), Clock()
+    show = Progress(out, tty=False, totals={"S1": 5}, clock=clock)
+    show({"job_id": "j1", "state": "accepted"})
+    for k in range(200):  # a status every 0.5 % of the job, 0.1 s apart
+        clock.t += 0.1
+        show(running(k / 200, S1=k // 40))
+    show({"job_id": "j1", "state": "succeeded", "cycle_time_s": 10.0})
+    lines = out.getvalue().splitlines()
+    assert "\r" not in out.getvalue()
+    assert lines[0] == "  j1: accepted" and lines[-1] == "  j1: succeeded, 10.00 s"
+    assert len(lines) == 2 + 10  # 0 %, 10 %, ... 90 %
+    assert all("hole" in line for line in lines[1:-1])
+
+
+def test_slow_jobs_still_show_a_line_every_five_seconds():
+    out, clock = io.StringIO(), Clock()
+    show = Progress(out, tty=False, clock=clock)
+    for k in range(60):  # 30 s of wall time within the first 3 % of the job
+        clock.t += 0.5
+        show(running(k / 2000))
+    lines = out.getvalue().splitlines()
+    assert 6 <= len(lines) <= 7  # the first, then one per 5 s
+
+
+def test_totals_come_from_the_job_document():
+    assert job_totals(load_job_file(JOBS / "drill_row.yaml")) == {"S1": 5}
+    assert job_totals(load_job_file(JOBS / "turn_stepped.yaml")) == {"pass": 8}
+    assert job_totals(load_job_file(JOBS / "thread_m12.yaml")) == {"thread_pass": 7}
+    assert job_totals(load_job_file(JOBS / "lathe_feed_vibration.yaml")) == {}
+    assert job_totals({"kind": "drill"}) == {}  # invalid: the planner will say why

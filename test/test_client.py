@@ -1,0 +1,141 @@
+"""The cell controller's client (cnc_msgs_py.client) and cnc-submit, against running nodes.
+
+runner.Session starts planner and bridge under /cnc and records every topic; the client
+talks to them over the topics only. A bad job must fail in the client, before anything
+is published on job_goal (the recording shows what was).
+"""
+from __future__ import annotations
+
+import json
+import subprocess
+import time
+
+import pytest
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+
+from cnc_msgs_py.client import CncClient, load_job
+from cnc_msgs_py.schema import JobError
+from cnc_planner.runner import Session
+from cnc_servo_bridge.recording import read_run
+
+from support import BIN, JOBS, cnc
+
+
+def move_job(job_id: str, x: float, feed: float = 3000.0) -> dict:
+    return {"schema": "cnc_job/1", "job_id": job_id, "kind": "move", "machine": "mill3",
+            "move": [{"linear": {"x": x}, "feed": feed}, {"rapid": {"x": 0}}]}
+
+
+def yaml_text(doc: dict) -> str:
+    moves = "\n".join(f"  - {json.dumps(m)}" for m in doc["move"])
+    return (f"schema: cnc_job/1\njob_id: {doc['job_id']}\nkind: move\nmachine: mill3\n"
+            f"move:\n{moves}\n")
+
+
+def submit_process(*args: str) -> subprocess.Popen:
+    return subprocess.Popen([str(BIN / "cnc-submit"), *map(str, args)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+
+
+def finish(session: Session, proc: subprocess.Popen, timeout: float = 45) -> tuple[str, str]:
+    """Keep the session recording while cnc-submit works; its output once it exits."""
+    session.spin_until(lambda: proc.poll() is not None, timeout, "cnc-submit did not end")
+    return proc.communicate()
+
+
+def test_cnc_submit_runs_and_cancels_jobs_on_running_nodes(tmp_path):
+    job = tmp_path / "short.yaml"
+    job.write_text(yaml_text(move_job("sub-1", 20.0)))
+    long_job = tmp_path / "long.yaml"
+    long_job.write_text(yaml_text(move_job("sub-2", 200.0)))  # 4 s of feed
+    with Session("mill3", tmp_path / "bag") as session:
+        proc = submit_process(job, "--namespace", "/cnc", "--timeout", "30")
+        out, err = finish(session, proc)
+        assert proc.returncode == 0, err
+        final = json.loads(out.strip().splitlines()[-1])
+        assert final["job_id"] == "sub-1" and final["state"] == "succeeded" and final["cycle_time_s"] > 0
+        assert "Traceback" not in err
+
+        proc = submit_process(long_job, "--cancel-after", "1.5", "--timeout", "30")
+        out, err = finish(session, proc)
+        assert proc.returncode == 0, err  # canceled, as asked
+        assert json.loads(out.strip().splitlines()[-1])["state"] == "canceled"
+    # The planner got both (job_goal keeps no history, so a recorder discovered by the
+    # cnc-submit process after it sent may miss a goal; the statuses are latched).
+    finals = [(s["job_id"], s["state"]) for s in read_run(tmp_path / "bag").statuses if s["state"] != "running"]
+    assert finals == [("sub-1", "accepted"), ("sub-1", "succeeded"), ("sub-2", "accepted"), ("sub-2", "canceled")]
+
+
+def test_client_submits_follows_waits_and_cancels_in_process(tmp_path):
+    with Session("mill3", tmp_path / "bag") as session:
+        node = rclpy.create_node("cell_controller")
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        executor.add_node(session.recorder)  # keeps recording while the client spins
+        try:
+            client = CncClient(node, namespace="/cnc", executor=executor)
+            seen: list[dict] = []
+            client.on_progress(seen.append)
+
+            # A bad job fails in the client, naming the field; nothing is sent.
+            bad = move_job("bad-1", 10.0, feed=-300)
+            with pytest.raises(JobError, match=r"move\[0\]\.feed"):
+                client.submit(bad)
+            with pytest.raises(JobError, match="cannot read job file"):
+                client.submit(str(tmp_path / "missing.yaml"))
+
+            # A dict, waited for.
+            job_id = client.submit(move_job("cli-1", 15.0))
+            final = client.wait(job_id, timeout=30)
+            assert final["state"] == "succeeded" and final["job_id"] == "cli-1"
+            assert client.status("cli-1") == final
+            states = [s["state"] for s in seen if s["job_id"] == "cli-1"]
+            assert states[0] == "accepted" and "running" in states and states[-1] == "succeeded"
+            running = [s for s in seen if s["state"] == "running"]
+            assert all(0.0 <= s["progress"] <= 1.0 and s["duration_s"] > 0 for s in running)
+
+            # YAML text, canceled once it runs; a timeout is an exception, not a hang.
+            job_id = client.submit(yaml_text(move_job("cli-2", 200.0)))
+            with pytest.raises(TimeoutError, match="cli-2"):
+                client.wait(job_id, timeout=0.3)
+            deadline = time.monotonic() + 20
+            while (client.status(job_id) or {}).get("state") != "running" and time.monotonic() < deadline:
+                executor.spin_once(timeout_sec=0.05)
+            assert client.status(job_id)["state"] == "running"
+            client.cancel(job_id)
+            assert client.wait(job_id, timeout=30)["state"] == "canceled"
+
+            # The planner's own rejection comes back as a final status (duplicate job_id).
+            job_id = client.submit(move_job("cli-1", 5.0))
+            assert client.wait(job_id, timeout=30)["state"] == "rejected"
+        finally:
+            executor.remove_node(session.recorder)
+            executor.remove_node(node)
+            node.destroy_node()
+    goals = [json.loads(g)["job_id"] for g in read_run(tmp_path / "bag").goals]
+    assert goals == ["cli-1", "cli-2", "cli-1"]  # never bad-1
+
+
+def test_cnc_submit_refuses_a_bad_job_in_one_line_before_any_ros(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(yaml_text(move_job("bad-2", 10.0, feed=-300)))
+    for args, expected in (([bad], "move[0].feed: must be > 0 mm/min"),
+                           ([tmp_path / "missing.yaml"], "cannot read job file"),
+                           ([JOBS / "drill_row.yaml", "--timeout", "0"], "--timeout: must be > 0")):
+        result = cnc("cnc-submit", *args, timeout=30)
+        assert result.returncode == 2, result.stderr
+        lines = result.stderr.strip().splitlines()
+        assert len(lines) == 1 and expected in lines[0] and lines[0].startswith("cnc-submit: "), result.stderr
+        assert result.stdout == ""
+
+
+def test_load_job_takes_dicts_text_and_files():
+    doc = load_job(JOBS / "drill_row.yaml")
+    assert load_job(str(JOBS / "drill_row.yaml")) == doc
+    assert load_job(json.dumps(doc)) == doc
+    assert load_job(doc) is doc
+    with pytest.raises(JobError, match="drill.depth"):
+        load_job({**doc, "drill": {**doc["drill"], "depth": -1}})
+    with pytest.raises(JobError, match="mapping"):
+        load_job("- just\n- a list\n")

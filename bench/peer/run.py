@@ -1,0 +1,410 @@
+"""`make bench-peer`: the same jobs on LinuxCNC 2.9 and on our planner, one table.
+
+LinuxCNC (Debian's linuxcnc-uspace, installed with apt-get if missing) runs headless as
+an unprivileged user on INI/HAL files generated from config/machines/mill3.yaml and
+lathe.yaml (velocity and acceleration limits exactly ours; 2.9 plans without a jerk
+limit), driven by bench/peer/driver.py, every joint position recorded each 1 ms servo
+period with HAL's sampler and halsampler -t. Our side plans the same job documents with
+the planner's job code and runs them through the bridge's drive model, on the normal
+jerk-limited machine and on a "fair race" copy whose jerk limit is so high that our
+profiles are trapezoids too. Both recordings go through the same drive model and the
+same analysis code (bench/peer/analysis.py). While LinuxCNC runs (in real time, about
+5 minutes), our side is computed.
+
+    .venv/bin/python bench/peer/run.py [--keep DIR] [--reuse DIR] [--only REGEX]
+
+--keep DIR keeps LinuxCNC's work directories (configs, programs, samples) in DIR;
+--reuse DIR analyses the sessions kept there instead of running LinuxCNC again;
+--only REGEX runs the rows whose name matches. Writes bench/results/peer.txt.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
+sys.path[:0] = [str(HERE)] + [str(ROOT / "src" / p) for p in ("cnc_msgs_py", "cnc_planner", "cnc_servo_bridge")]
+
+import numpy as np  # noqa: E402
+import yaml  # noqa: E402
+
+from cnc_msgs_py.job import parse_job  # noqa: E402
+from cnc_msgs_py.machine import load_machine  # noqa: E402
+from cnc_planner.drilling import lower_bound_time  # noqa: E402
+from cnc_planner.jobs import drill_cycle, plan_job  # noqa: E402
+from cnc_planner.kinematics import Kinematics  # noqa: E402
+from cnc_planner.report import job_window, simulated_feedback  # noqa: E402
+from cnc_servo_bridge.recording import read_run  # noqa: E402
+
+import analysis  # noqa: E402
+import gcode  # noqa: E402
+import linuxcnc_side  # noqa: E402
+import ours  # noqa: E402
+from rows import THREAD_CLEARANCE_MM, Row, all_rows  # noqa: E402
+
+RESULTS = ROOT / "bench" / "results" / "peer.txt"
+
+
+def mdi_start(start: dict[str, float]) -> str:
+    return "G0 " + " ".join(f"{k.upper()}{v:.4f}" for k, v in start.items())
+
+
+def programs_for(row: Row) -> list[tuple[str, linuxcnc_side.Program]]:
+    """(variant, program) pairs of a row on the LinuxCNC side."""
+    start = mdi_start(row.start)
+    if row.kind == "drill":
+        return [(v, linuxcnc_side.Program(f"{row.name} {v}", start, gcode.drill_program(row.name, row.doc, v)))
+                for v in ("G99", "G98")]
+    if row.kind == "thread":
+        text = gcode.thread_program(row.name, row.doc, THREAD_CLEARANCE_MM, back_to_start=True)
+        return [("G76", linuxcnc_side.Program(f"{row.name} G76", start, text))]
+    return [("G71", linuxcnc_side.Program(f"{row.name} G71", start, gcode.turn_program(row.name, row.doc)))]
+
+
+def run_linuxcnc(rows: list[Row], workroot: Path, reuse: bool, out: dict, log) -> None:
+    """Both sessions (mill3, lathe), one after the other; fills out[machine] or out['error']."""
+    try:
+        workroot.mkdir(parents=True, exist_ok=True)
+        workroot.chmod(0o755)  # the unprivileged user must reach its work directories
+        for name in ("mill3", "lathe"):
+            mine = [r for r in rows if r.machine == name]
+            if not mine:
+                continue
+            progs = [p for r in mine for _, p in programs_for(r)]
+            workdir = workroot / name
+            if reuse:
+                status = json.loads((workdir / "driver.json").read_text())
+                out[name] = linuxcnc_side.parse_session(load_machine(name), status, workdir, 0.0)
+            else:
+                log(f"LinuxCNC {name}: {len(progs)} programs ...")
+                out[name] = linuxcnc_side.run_session(load_machine(name), progs, workdir)
+                s = out[name]
+                log(f"LinuxCNC {name}: done in {s.wall_s:.0f} s, {s.samples} samples, {s.gaps} lost")
+    except Exception as err:  # noqa: BLE001 - reported in the table's notes
+        out["error"] = f"{type(err).__name__}: {err}"
+
+
+def our_side(row: Row, variants: dict) -> dict:
+    """Our figures for one row on both machine descriptions."""
+    res = {}
+    for key, machine in variants[row.machine].items():
+        o = ours.run(row.doc, machine, row.start)
+        res[key] = judge(row, o["t"], o["axes"], o["spindle"], machine)
+        if row.reference_doc is not None:
+            ref = ours.run(row.reference_doc, machine, row.start)
+            res[key + "_plain"] = judge(row, ref["t"], ref["axes"], ref["spindle"], machine)
+    return res
+
+
+def judge(row: Row, t, axes, spindle, machine) -> dict:
+    """The row's figures from sampled positions (SI), whoever recorded them."""
+    if row.kind == "drill":
+        job = parse_job({**row.doc, "machine": machine.name})
+        cycle = drill_cycle(job, machine, Kinematics(machine, job.setup, job.tool))
+        a = analysis.drilling(t, axes, cycle)
+        off, low = analysis.off_hole(axes, cycle)
+        return {"time": a["cycle_time_s"], "viol": a["safety_violations"], "holes": len(cycle.holes),
+                "off_um": off * 1e6, "low_mm": None if low is None else low * 1e3}
+    if row.kind == "thread":
+        a = analysis.thread(t, axes, spindle, row.doc["thread"])
+        p = a["passes"]
+        gaps = [b["t_start"] - e["t_end"] for e, b in zip(p, p[1:])]
+        return {"time": analysis.cycle_time(t, axes), "chip": a["max_chip_revs"], "passes": a["cutting_passes"],
+                "synced": a["synchronised_passes"], "depth_error_mm": a["depth_error_mm"],
+                "gap_s": sum(gaps) / len(gaps) if gaps else 0.0,
+                "pass_s": sum(e["t_end"] - e["t_start"] for e in p) / len(p) if p else 0.0}
+    turn = row.doc["turn"]
+    a = analysis.turning_air(t, axes, turn["stock"], turn["feed"] * row.doc["spindle_rpm"])
+    return {"time": analysis.cycle_time(t, axes), "air": a["air_share"], "feed_mm": a["feed_mm"],
+            "air_mm": a["air_feed_mm"], "rapid_cut_mm": a["rapid_cut_mm"]}
+
+
+def linuxcnc_figures(row: Row, sessions: dict) -> dict:
+    """Per variant: figures on our drive model's feedback ('fb') and on the raw recording."""
+    out = {}
+    session = sessions.get(row.machine)
+    machine = load_machine(row.machine)
+    for variant, prog in programs_for(row):
+        rec = session.recordings.get(prog.name) if session else None
+        if rec is None:
+            out[variant] = {"error": "not recorded"}
+            continue
+        if rec.errors or not rec.finished:
+            out[variant] = {"error": "; ".join(rec.errors) or "did not finish"}
+            continue
+        fb = analysis.through_servo(rec.t, rec.axes, machine)
+        out[variant] = {"fb": judge(row, rec.t, fb, rec.spindle, machine),
+                        "raw": judge(row, rec.t, rec.axes, rec.spindle, machine)}
+    return out
+
+
+def bound(row: Row, variants: dict) -> float | None:
+    if row.kind != "drill":
+        return None
+    machine = variants["mill3"]["fair"]
+    job = parse_job({**row.doc, "machine": machine.name})
+    cycle = drill_cycle(job, machine, Kinematics(machine, job.setup, job.tool))
+    return lower_bound_time(machine, cycle, (row.start["x"] * 1e-3, row.start["y"] * 1e-3))
+
+
+def fmt(v, spec=".3f") -> str:
+    return "-" if v is None else format(v, spec)
+
+
+def why(row: Row, lc: dict, fair: dict) -> str:
+    """The figures behind a row: chips, air, or why the fair race went the way it did."""
+    if row.kind == "drill":
+        g99 = lc.get("G99", {}).get("fb")
+        if not g99:
+            return ""
+        per_hole = (fair["time"] - g99["time"]) / fair["holes"] * 1e3
+        if fair["time"] < g99["time"] and fair["viol"] == 0:
+            return f"fair faster by {-per_hole:.0f} ms/hole"
+        return (f"fair +{per_hole:.0f} ms/hole: G99 feeds Z past R {g99['viol'] / g99['holes']:.0f} ms/hole "
+                f"before X/Y settles (up to {g99['off_um']:.0f} um off); ours keeps Z above R until X/Y is in")
+    return ""
+
+
+def table(rows: list[Row], lc: dict, us: dict, bounds: dict) -> list[str]:
+    head = (f"{'row':<22} {'peer':>4} {'LC s':>7} {'ideal s':>7} {'safe s':>7} {'G98 s':>7} {'fair s':>7} "
+            f"{'jerk s':>7} {'bound s':>7} {'fair/LC':>7} {'jerk/LC':>7} {'f/safe':>7} {'viol LC':>9} "
+            f"{'viol us':>7}  figures / why")
+    lines = [head, "-" * (len(head) + 60)]
+    for row in rows:
+        figs = lc.get(row.name, {})
+        peer = {"drill": "G99", "thread": "G76", "turn": "G71"}[row.kind]
+        main = figs.get(peer, {})
+        fair, jerk = us[row.name]["fair"], us[row.name]["jerk"]
+        lc_t = main.get("fb", {}).get("time")
+        ideal = main.get("raw", {}).get("time")
+        g98 = safe = None
+        viol_lc = viol_us = "-"
+        extra = why(row, figs, fair)
+        if row.kind == "drill":
+            g98 = figs.get("G98", {}).get("fb", {}).get("time")
+            v99, v98 = main.get("fb", {}).get("viol"), figs.get("G98", {}).get("fb", {}).get("viol")
+            safe = lc_t + v99 * 1e-3 if lc_t is not None else None
+            viol_lc = f"{fmt(v99, 'd')}/{fmt(v98, 'd')}"
+            viol_us = f"{fair['viol']}/{jerk['viol']}"
+        elif row.kind == "thread":
+            c = main.get("fb", {}).get("chip")
+            plain = us[row.name]["fair_plain"], us[row.name]["jerk_plain"]
+            extra = (f"longest chip LC {fmt(c, '.2f')}, fair {fair['chip']:.2f}, jerk {jerk['chip']:.2f} rev; "
+                     f"ours w/o vibration {plain[0]['chip']:.2f} rev in "
+                     f"{plain[0]['time']:.3f}/{plain[1]['time']:.3f} s")
+        else:
+            a = main.get("fb", {}).get("air")
+            extra = (f"feed travel cutting air: LC {fmt(a and 100 * a, '.1f')} %, fair {100 * fair['air']:.1f} %, "
+                     f"jerk {100 * jerk['air']:.1f} %")
+        ratio = (lambda x: fmt(x / lc_t)) if lc_t else (lambda x: "-")
+        lines.append(f"{row.name:<22} {peer:>4} {fmt(lc_t):>7} {fmt(ideal):>7} {fmt(safe):>7} {fmt(g98):>7} "
+                     f"{fair['time']:>7.3f} {jerk['time']:>7.3f} {fmt(bounds.get(row.name)):>7} "
+                     f"{ratio(fair['time']):>7} {ratio(jerk['time']):>7} "
+                     f"{fmt(safe and fair['time'] / safe):>7} {viol_lc:>9} {viol_us:>7}  {extra}")
+        for variant, f in figs.items():
+            if "error" in f:
+                lines.append(f"{'':<22} {variant:>4} LinuxCNC error: {f['error']}")
+    return lines
+
+
+def ros_check(workdir: Path) -> dict:
+    """Our nodes over topics on config/jobs/drill_row.yaml (cnc-run: bridge and planner as
+    separate processes, recorded to a bag) against the offline path used for the table,
+    planned from the recording's start. DDS stays on this host, in a domain of its own."""
+    env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+           "ROS_DOMAIN_ID": os.environ.get("ROS_DOMAIN_ID", str(20 + os.getpid() % 80))}
+    job_file = ROOT / "config" / "jobs" / "drill_row.yaml"
+    out = workdir / "ros"
+    cnc_run = Path(sys.executable).parent / "cnc-run"
+    try:
+        subprocess.run([str(cnc_run), str(job_file), "--out", str(out)], env=env, check=True, timeout=240,
+                       stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+        report = json.loads((out / "report.json").read_text())
+        run = read_run(out / "bag")
+        window = job_window(run, report["job_id"])
+        doc = yaml.safe_load(job_file.read_text())
+        job = parse_job(doc)
+        machine = load_machine(job.machine)
+        start = {j: float(run.feedback[window][0, run.column(j)]) for j in run.joints}
+        t, fb = simulated_feedback(plan_job(job, machine, start), machine)
+        cycle = drill_cycle(job, machine, Kinematics(machine, job.setup, job.tool))
+        offline = analysis.drilling(t, {j: fb[:, k] for k, j in enumerate(("x", "y", "z"))}, cycle)
+        return {"domain": env["ROS_DOMAIN_ID"], "topics_s": report["drill"]["cycle_time_s"],
+                "topics_viol": report["drill"]["safety_violations"], "offline_s": offline["cycle_time_s"]}
+    except Exception as err:  # noqa: BLE001 - a failed check is reported, not fatal
+        return {"error": f"{type(err).__name__}: {err}"}
+
+
+def lc_limits(sessions: dict) -> list[str]:
+    """What LinuxCNC did with the limits it was given, from its ideal-loop recordings."""
+    out = []
+    for name in ("mill3", "lathe"):
+        s = sessions.get(name)
+        if not s:
+            continue
+        m = load_machine(name)
+        parts = []
+        for ax in m.linear_axes:
+            recs = [r for r in s.recordings.values() if r is not None]
+            if not recs:
+                continue
+            v = max(float(np.abs(np.diff(r.axes[ax])).max()) / 1e-3 for r in recs)
+            acc = np.concatenate([np.abs(np.diff(r.axes[ax], 2)) / 1e-6 for r in recs])
+            acc = np.round(acc[acc > 0.5 * m.axes[ax].max_acceleration], 2)  # the plateaus of rapids
+            values, counts = np.unique(acc, return_counts=True) if len(acc) else (np.zeros(1), np.zeros(1))
+            a = m.axes[ax]
+            held = values[int(np.argmax(counts))] * 1e3
+            parts.append(f"{ax} v {a.max_velocity * 1e3:g} mm/s (peak used {v * 1e3:.0f}), "
+                         f"a {a.max_acceleration * 1e3:g} mm/s^2 (held at {held:.0f}, "
+                         f"peak {acc.max(initial=0) * 1e3:.0f})")
+        out.append(f"  {name}: " + "; ".join(parts))
+        out.append(f"  {name}: {s.samples} samples recorded, {s.gaps} lost; session {s.wall_s:.0f} s wall")
+    return out
+
+
+def notes(rows: list[Row], lc: dict, us: dict, sessions: dict, ros: dict) -> list[str]:
+    mill, lathe = load_machine("mill3"), load_machine("lathe")
+    jerk = ", ".join(f"{m.name} {m.axes['x'].max_jerk:g}" for m in (mill, lathe))
+    lines = [
+        "LC s: LinuxCNC's recorded joint positions (sampler + halsampler -t, every 1 ms servo period) run through",
+        "  our bridge's drive model (DriveModel of the machine: kp, feed-forward, velocity lag, encoder), the same",
+        "  servo our side runs on; ideal s: the same recording as LinuxCNC's sim loops it back (no servo lag).",
+        "  safe s: G99 had Z waited at R until X/Y is within 10 um (LC s + its violation samples x 1 ms).",
+        "  G98 s: G98 (retract to the start level, 5 mm above the surface) on the drive model. peer: G99/G76/G71.",
+        "fair s / jerk s: our planner on the machine with every max_jerk raised to 1e6 m/s^3 (trapezoids, like",
+        f"  LinuxCNC) / on the normal description (max_jerk m/s^3: {jerk}); drive-model feedback.",
+        "bound s: lower_bound_time (X/Y positioning + fastest feed and exit below R per hole) at these limits.",
+        "fair/LC, jerk/LC, f/safe: ratios of our times to LinuxCNC's (LC s) and to the safe G99 (safe s).",
+        "viol: samples (ms) with the tip below R while X/Y is more than 10 um off the hole (analyze_drilling),",
+        "  LinuxCNC G99/G98 and ours fair/jerk, on the drive-model feedback; on LinuxCNC's ideal loop G99 and G98",
+        "  have " + _ideal_viol(rows, lc) + ".",
+        "Times: first to last axis motion on the positions (analyze_drilling / cnc_servo_bridge.analysis.cycle_time).",
+        "Both sides start at the same point (drilling: one pitch before the first hole, 5 mm above the surface;",
+        "  thread: the drive line 1 mm above the major radius at start_z; roughing: the origin Q0) with the",
+        "  spindle at speed. Chips: analyze_thread (longest continuous cut of the cutting passes, spindle revs);",
+        "  air: feed travel not touching the stock left (cnc_planner.turning.StockModel replay of the path).",
+        "",
+        "LinuxCNC got exactly our per-axis limits (INI [AXIS_*]/[JOINT_*], SI -> mm; [TRAJ] vector limits set",
+        "  to the norm of the axis limits so they never bind). LinuxCNC 2.9 plans without a jerk limit",
+        "  (trapezoidal, no S-curve). What it used, from the ideal-loop recordings:",
+        *lc_limits(sessions),
+    ]
+    drill = [r for r in rows if r.kind == "drill"]
+    faster = [r for r in drill if lc.get(r.name, {}).get("G99", {}).get("fb")
+              and us[r.name]["fair"]["time"] < lc[r.name]["G99"]["fb"]["time"] and us[r.name]["fair"]["viol"] == 0]
+    safe = [r for r in drill if lc.get(r.name, {}).get("G99", {}).get("fb") and us[r.name]["fair"]["time"]
+            < lc[r.name]["G99"]["fb"]["time"] + lc[r.name]["G99"]["fb"]["viol"] * 1e-3]
+    if drill:
+        lines += ["", f"Fair race, drilling: ours faster than G99 on {len(faster)} of {len(drill)} rows, faster than "
+                  f"G99 made safe (safe s) on {len(safe)} of {len(drill)}; ours has "
+                  f"{sum(us[r.name]['fair']['viol'] + us[r.name]['jerk']['viol'] for r in drill)} "
+                  "safety violations on feedback in all drilling rows.",
+                  "  G99 is exact on its own ideal loop (0 violations) but starts the Z feed at R the moment X/Y's",
+                  "  command arrives; behind a servo (the same drive model as ours) X/Y is then still settling, so the",
+                  f"  tip goes below R off the hole, down to {_lowest(drill, lc):.2f} mm above the surface. "
+                  "Our cycle holds",
+                  "  the crossing of R until X/Y's feedback is within 10 um, which costs more than its overlap",
+                  "  gains back at these limits (mill3: kp 50/s, no acceleration feed-forward)."]
+    for row in rows:
+        figs = lc.get(row.name, {})
+        if row.kind == "thread" and figs.get("G76", {}).get("fb"):
+            g, f = figs["G76"]["fb"], us[row.name]["fair"]
+            lines += [f"Thread: LinuxCNC G76 cuts {g['passes']} passes + spring, each a continuous chip of "
+                      f"{g['chip']:.2f} rev (the whole thread); ours breaks it at {f['chip']:.2f} rev.",
+                      f"  Cycle: passes last {g['pass_s']:.3f} s (G76) / {f['pass_s']:.3f} s (ours); between passes "
+                      f"G76 needs {g['gap_s']:.3f} s, ours {f['gap_s']:.3f} s (drive settle, compensation lead-in and",
+                      "  the wait for the spindle phase), which is where our thread cycle is slower."]
+        if row.kind == "turn" and figs.get("G71", {}).get("fb"):
+            g, f, j = figs["G71"]["fb"], us[row.name]["fair"], us[row.name]["jerk"]
+            lines += [f"Roughing: G71 feeds {g['feed_mm']:.0f} mm, {g['air_mm']:.0f} mm of it in air (it assumes a "
+                      f"cylinder of the start radius); ours feeds {f['feed_mm']:.0f} mm, {f['air_mm']:.0f} mm in air.",
+                      f"  Rapids touching stock on feedback: LC {g['rapid_cut_mm']:.2f} mm, ours fair "
+                      f"{f['rapid_cut_mm']:.2f} mm, jerk {j['rapid_cut_mm']:.2f} mm.",
+                      "  G71 runs the profile as an O-word subroutine (2.9 needs collinear points removed: 'Cannot",
+                      "  intersect parallel lines'); its D offsets the profile normal to it, our allowance is radial."]
+    if ros:
+        if "error" in ros:
+            lines += ["", f"Nodes over topics (cnc-run drill_row.yaml) failed: {ros['error']}"]
+        else:
+            lines += ["", "Our nodes over topics (cnc-run config/jobs/drill_row.yaml, "
+                      f"ROS_DOMAIN_ID {ros['domain']}, localhost): {ros['topics_s']:.3f} s, "
+                      f"{ros['topics_viol']} violations;",
+                      "  the offline path this table uses, planned from the recording's start: "
+                      f"{ros['offline_s']:.3f} s."]
+    return lines
+
+
+def _lowest(rows: list[Row], lc: dict) -> float:
+    lows = [f["fb"]["low_mm"] for r in rows for f in lc.get(r.name, {}).values()
+            if f.get("fb", {}).get("low_mm") is not None]
+    return min(lows, default=float("nan"))
+
+
+def _ideal_viol(rows: list[Row], lc: dict) -> str:
+    total = sum(f.get("raw", {}).get("viol", 0) for r in rows if r.kind == "drill"
+                for f in lc.get(r.name, {}).values())
+    return f"{total} in all rows together"
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--keep", type=Path, help="keep LinuxCNC's work directories here")
+    parser.add_argument("--reuse", type=Path, help="analyse the sessions kept in this directory")
+    parser.add_argument("--only", help="rows whose name matches this regular expression")
+    parser.add_argument("--no-ros", action="store_true", help="skip the check of our nodes over topics")
+    args = parser.parse_args()
+    begin = time.monotonic()
+
+    def log(msg: str) -> None:
+        print(f"[{time.monotonic() - begin:5.0f} s] {msg}", flush=True)
+
+    rows = [r for r in all_rows() if not args.only or re.search(args.only, r.name)]
+    version = "(reused recording)"
+    if not args.reuse:
+        version = linuxcnc_side.ensure_installed()
+        linuxcnc_side.ensure_user()
+    tmp = Path(tempfile.mkdtemp(prefix="bench-peer-"))
+    workroot = args.reuse or args.keep or tmp
+    variants = {name: ours.machines(name, tmp / "machines") for name in {r.machine for r in rows}}
+    sessions: dict = {}
+    worker = threading.Thread(target=run_linuxcnc, args=(rows, workroot, bool(args.reuse), sessions, log))
+    worker.start()
+    us, bounds = {}, {}
+    ros = {} if args.no_ros else ros_check(tmp)
+    if ros:
+        log(f"nodes over topics: {ros}")
+    for row in rows:
+        us[row.name] = our_side(row, variants)
+        bounds[row.name] = bound(row, variants)
+        log(f"ours: {row.name}: fair {us[row.name]['fair']['time']:.3f} s, jerk {us[row.name]['jerk']['time']:.3f} s")
+    worker.join()
+    lc = {row.name: linuxcnc_figures(row, sessions) for row in rows}
+    lines = [f"LinuxCNC {version} (linuxcnc-uspace, headless sim, servo 1 ms) vs our planner: same jobs, "
+             f"same axis limits, same servo model, same analysis; {time.strftime('%Y-%m-%d')}", ""]
+    lines += table(rows, lc, us, bounds)
+    if sessions.get("error"):
+        lines.append(f"LinuxCNC failed: {sessions['error']}")
+    lines += ["", *notes(rows, lc, us, sessions, ros)]
+    text = "\n".join(lines) + "\n"
+    print(text)
+    if not args.only:
+        RESULTS.parent.mkdir(parents=True, exist_ok=True)
+        RESULTS.write_text(text)
+        log(f"written {RESULTS.relative_to(ROOT)}")
+    shutil.rmtree(tmp, ignore_errors=True)  # machines, the topics check; LinuxCNC's unless --keep
+    log("done")
+    return 0 if "error" not in sessions else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

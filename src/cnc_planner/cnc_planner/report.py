@@ -25,6 +25,7 @@ from cnc_servo_bridge.thread_analysis import analyze_thread
 from .drilling import lower_bound_time
 from .jobs import drill_cycle, plan_job
 from .kinematics import Kinematics
+from .path_report import path_section
 from .turning import max_gouge, plan_naive, plan_roughing
 
 FINAL = ("rejected", "succeeded", "aborted", "canceled")
@@ -81,6 +82,8 @@ def build_report(run: Run) -> dict:
         report["drill"] = drill_section(run, job, machine, window)
     if job.kind == "turn":
         report["turn"] = turn_section(run, job, machine, window)
+    if job.kind == "path":
+        report["kinematics"] = path_section(run, job, machine, window)
     if job.kind == "thread":
         report["thread"] = thread_section(run, window)
     elif job.vibration is not None:

@@ -1,0 +1,105 @@
+"""The ``kinematics`` section of report.json for path jobs: how far the tool tip left
+the programmed polyline, by forward kinematics of the feedback and of the commands.
+
+The programmed path is the job's points in program coordinates; each tip is measured
+to the nearest programmed segment. ``servo_lag_mm`` is the largest distance between
+FK(feedback) and FK(command) at the same instant: since the distance to a polyline
+moves by at most as much as the point does, the feedback deviation never exceeds the
+commanded deviation (within the chord tolerance) plus this lag.
+"""
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from cnc_msgs_py.machine import Machine
+from cnc_msgs_py.units import to_mm
+from cnc_servo_bridge.recording import Run
+
+from .kinematics import Kinematics
+
+BLOCK = 512  # query points measured together against the segments near them
+SETTLE_S = 0.5  # s of feedback after path_end still judged: the drives settle on the end point
+
+
+def distance_to_polyline(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    """Distance of each point (n, 3) to the nearest segment of the polyline (m, 3).
+
+    Points come in time order, so each block of them is compact: only segments whose
+    bounding box lies within the block's distance bound are measured.
+    """
+    points = np.asarray(points, float).reshape(-1, 3)
+    vertices = np.asarray(vertices, float).reshape(-1, 3)
+    if len(vertices) == 1:
+        return np.linalg.norm(points - vertices[0], axis=1)
+    a, b = vertices[:-1], vertices[1:]
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    out = np.empty(len(points))
+    for start in range(0, len(points), BLOCK):
+        block = points[start:start + BLOCK]
+        b_lo, b_hi = block.min(axis=0), block.max(axis=0)
+        bound = float(_segment_distances(block[:1], a, b).min()) + float(np.linalg.norm(b_hi - b_lo))
+        gap = np.linalg.norm(np.maximum(0.0, np.maximum(lo - b_hi, b_lo - hi)), axis=1)
+        near = gap <= bound + 1e-12
+        out[start:start + BLOCK] = _segment_distances(block, a[near], b[near]).min(axis=1)
+    return out
+
+
+def _segment_distances(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(n, m): distance of point i to segment a_j-b_j (a point where a_j == b_j)."""
+    d = b - a
+    dd = np.einsum("ij,ij->i", d, d)
+    rel = points[:, None, :] - a[None, :, :]
+    u = np.clip(np.einsum("nmk,mk->nm", rel, d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+    return np.linalg.norm(rel - u[:, :, None] * d[None, :, :], axis=2)
+
+
+def tip_deviations(kin: Kinematics, joints: dict[str, np.ndarray], vertices: np.ndarray) -> np.ndarray:
+    """Distance of the FK tip of each joint sample to the programmed polyline (m)."""
+    tips, _ = kin.fk_many(joints)
+    return distance_to_polyline(tips, vertices)
+
+
+def path_figures(kin: Kinematics, vertices: np.ndarray, command_t: np.ndarray, command: np.ndarray,
+                 commanded: np.ndarray, feedback_t: np.ndarray, feedback: np.ndarray,
+                 chord_tolerance: float) -> dict:
+    """The section from arrays (rows of joint positions, columns = kin.joints): every
+    command (for the lag), the mask of those on the path, and the feedback on the path;
+    lengths in mm as machinists read them."""
+    as_joints = lambda rows: {j: rows[:, i] for i, j in enumerate(kin.joints)}  # noqa: E731
+    on_path = command[commanded]
+    commanded = tip_deviations(kin, as_joints(on_path), vertices) if len(on_path) else np.zeros(1)
+    fb = as_joints(feedback)
+    deviation = tip_deviations(kin, fb, vertices) if len(feedback) else np.zeros(1)
+    lag = 0.0
+    if len(feedback) and len(command):
+        at_fb = {j: np.interp(feedback_t, command_t, command[:, i]) for i, j in enumerate(kin.joints)}
+        lag = float(np.max(np.linalg.norm(kin.fk_many(fb)[0] - kin.fk_many(at_fb)[0], axis=1)))
+    return {
+        "max_tip_deviation_mm": to_mm(float(deviation.max())),
+        "commanded_max_tip_deviation_mm": to_mm(float(commanded.max())),
+        "chord_tolerance_mm": to_mm(chord_tolerance),
+        "servo_lag_mm": to_mm(lag),
+        "feedback_samples": int(len(feedback)),
+    }
+
+
+def path_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray) -> dict:
+    """Tip deviation of a path job from path_start to path_end (plus SETTLE_S of feedback)."""
+    kin = Kinematics(machine, job.setup, job.tool)
+    events = [e for e in run.events if e.get("job_id") == job.job_id]
+    starts = [e["stamp_ns"] / 1e9 for e in events if e["name"] == "path_start"]
+    ends = [e["stamp_ns"] / 1e9 for e in events if e["name"] == "path_end"]
+    if not starts:
+        return {"chord_tolerance_mm": to_mm(job.path.chord_tolerance), "max_tip_deviation_mm": None,
+                "commanded_max_tip_deviation_mm": None, "servo_lag_mm": None, "feedback_samples": 0,
+                "completed": False, "path_time_s": None}
+    t0 = starts[-1]
+    t1 = ends[-1] if ends and ends[-1] >= t0 else (float(run.command_t[-1]) if len(run.command_t) else t0)
+    cols = [run.column(j) for j in kin.joints]
+    fb_in = window & (run.feedback_t >= t0 - 1e-9) & (run.feedback_t <= t1 + SETTLE_S)
+    cmd_in = (run.command_t >= t0 - 1e-9) & (run.command_t <= t1 + 1e-9)
+    figures = path_figures(kin, np.asarray(job.path.points, float), run.command_t, run.command[:, cols], cmd_in,
+                           run.feedback_t[fb_in], run.feedback[fb_in][:, cols], job.path.chord_tolerance)
+    return {**figures, "completed": bool(ends and ends[-1] >= t0), "path_time_s": t1 - t0}

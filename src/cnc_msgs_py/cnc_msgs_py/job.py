@@ -14,12 +14,21 @@ from typing import Any
 
 import yaml
 
-from .schema import Bool, Either, JobError, List, Num, Obj, Str
+from .schema import Bool, Either, JobError, List, Num, Obj, Str, show
+from .units import rpm
 
 SCHEMA = "cnc_job/1"
 KINDS = ("drill", "turn", "thread", "move", "path")
 AXIS_KEYS = ("x", "y", "z", "a", "b", "c")
 MAX_LIST = 100_000  # holes, moves, outline points: beyond this a job is refused
+# Smallest values that make sense on a machine tool. Smaller positive values would plan
+# moves lasting years (or not at all: ruckig gives up), so they are refused by name.
+MIN_FEED = 1.0  # mm/min
+MIN_FEED_PER_REV = 0.001  # mm/rev
+MIN_RPM = 1.0  # a spindle is off (0) or turns at least this fast
+MIN_PITCH = 0.01  # mm
+MIN_DEPTH_OF_CUT = 0.01  # mm, radial, turning
+MIN_CLEARANCE = 0.001  # mm, turning
 
 MM = Num("mm")
 POINT_ZX = List(Num("mm"), length=2)  # [z, radius] on the lathe
@@ -38,7 +47,7 @@ DRILL = Obj({
     "surface_z": Num("mm", default=0.0),
     "depth": Num("mm", gt=0.0),
     "r_gap": Num("mm", gt=0.0, max=50.0, default=2.0),
-    "feed": Num("mm/min", gt=0.0),
+    "feed": Num("mm/min", gt=0.0, min=MIN_FEED),
     "overlap": Str(("auto", "off"), default="auto"),
     "mode": Either((Str(("auto",)), Num("1", min=1, max=3, integer=True)), "auto, 1, 2 or 3", default="auto"),
     "gentle_air_accel": Bool(default=False),
@@ -48,16 +57,16 @@ MOVE_TARGET = Obj({k: Num("mm", default=None) for k in AXIS_KEYS})
 MOVE = List(Obj({
     "rapid": Obj(MOVE_TARGET.fields, default=None),
     "linear": Obj(MOVE_TARGET.fields, default=None),
-    "feed": Num("mm/min", gt=0.0, default=None),
+    "feed": Num("mm/min", gt=0.0, min=MIN_FEED, default=None),
     "dwell": Num("1", gt=0.0, max=3600.0, default=None),
 }), min_len=1, max_len=MAX_LIST, default=None)
 
 TURN = Obj({
     "stock": List(POINT_ZX, min_len=2, max_len=MAX_LIST),
     "profile": List(POINT_ZX, min_len=2, max_len=MAX_LIST),
-    "depth_of_cut": Num("mm", gt=0.0, max=20.0),
-    "clearance": Num("mm", gt=0.0, max=20.0, default=0.5),
-    "feed": Num("mm/rev", gt=0.0, max=5.0),
+    "depth_of_cut": Num("mm", gt=0.0, min=MIN_DEPTH_OF_CUT, max=20.0),
+    "clearance": Num("mm", gt=0.0, min=MIN_CLEARANCE, max=20.0, default=0.5),
+    "feed": Num("mm/rev", gt=0.0, min=MIN_FEED_PER_REV, max=5.0),
     "origin": POINT_ZX,
     "finish_allowance": Num("mm", min=0.0, max=5.0, default=0.0),
     "finishing_pass": Bool(default=False),
@@ -67,7 +76,7 @@ THREAD = Obj({
     "start_z": Num("mm"),
     "end_z": Num("mm"),
     "major_radius": Num("mm", gt=0.0),
-    "pitch": Num("mm", gt=0.0, max=100.0),
+    "pitch": Num("mm", gt=0.0, min=MIN_PITCH, max=100.0),
     "depth": Num("mm", gt=0.0),
     "passes": Num("1", min=1, max=100, integer=True, default=6),
     "depths": List(Num("mm", gt=0.0), min_len=1, max_len=100, default=None),
@@ -80,7 +89,7 @@ THREAD = Obj({
 PATH = Obj({
     "points": List(List(Num("mm"), min_len=3, max_len=3), min_len=2, max_len=MAX_LIST),
     "tool_axis": List(List(Num("1"), length=3), min_len=2, max_len=MAX_LIST, default=None),
-    "feed": Num("mm/min", gt=0.0),
+    "feed": Num("mm/min", gt=0.0, min=MIN_FEED),
     "chord_tolerance": Num("mm", gt=0.0, default=0.01),
 }, default=None)
 
@@ -119,6 +128,8 @@ def _check_kind(job: SimpleNamespace) -> None:
     for other in KINDS:
         if other != kind and getattr(job, other) is not None:
             raise JobError(other, f"not allowed in a '{kind}' job")
+    if 0.0 < job.spindle_rpm < rpm(MIN_RPM):
+        raise JobError("spindle_rpm", f"must be 0 (spindle off) or at least {MIN_RPM:g} rpm")
     if kind in NEEDS_SPINDLE and job.spindle_rpm <= 0.0:
         raise JobError("spindle_rpm", f"must be > 0 for a {kind} job")
     if kind == "move":
@@ -171,12 +182,37 @@ def parse_job(doc: Any) -> SimpleNamespace:
     return job
 
 
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict:
+    """JSON objects with a key given twice are refused: which value was meant is unknown."""
+    out = {}
+    for key, value in pairs:
+        if key in out:
+            raise _DuplicateKey(key)
+        out[key] = value
+    return out
+
+
+class _DuplicateKey(ValueError):
+    pass
+
+
 def decode_job(text: str) -> Any:
-    """Decode a job_goal message (JSON); a decode error is a JobError too."""
+    """Decode a job_goal message (JSON); a decode error is a JobError too.
+
+    JSON's ``NaN`` and ``Infinity`` tokens decode (the schema then names the field that
+    holds one); a key given twice in one object, nesting too deep and integers too long
+    to convert are decode errors.
+    """
     try:
-        return json.loads(text)
+        return json.loads(text, object_pairs_hook=_unique_keys)
     except json.JSONDecodeError as err:
         raise JobError("", f"not valid JSON ({err.msg} at line {err.lineno} column {err.colno})") from err
+    except _DuplicateKey as err:
+        raise JobError("", f"not valid JSON (key {show(err.args[0])} given twice in one object)") from err
+    except RecursionError as err:
+        raise JobError("", "not valid JSON (nested too deep)") from err
+    except ValueError as err:  # e.g. an integer literal beyond Python's digit limit
+        raise JobError("", f"not valid JSON ({str(err).split(':')[0][:80]})") from err
 
 
 def load_job_file(path: str | Path) -> dict:
@@ -194,6 +230,8 @@ def load_job_file(path: str | Path) -> dict:
         doc = yaml.safe_load(text)
     except yaml.YAMLError as err:
         raise JobError("", f"job file {path} is not valid YAML/JSON ({err})") from err
+    except RecursionError as err:
+        raise JobError("", f"job file {path} is not valid YAML/JSON (nested too deep)") from err
     if not isinstance(doc, dict):
         raise JobError("", f"job file {path} must hold a mapping")
     return doc
@@ -202,5 +240,10 @@ def load_job_file(path: str | Path) -> dict:
 def job_id_of(doc: Any) -> str:
     """The job_id of a document even if it is invalid, for status messages."""
     if isinstance(doc, dict) and isinstance(doc.get("job_id"), str):
-        return doc["job_id"][:64]
+        # printable and encodable (a lone surrogate from a \ud800 escape is not), so that
+        # the status and the log line carrying it cannot fail
+        job_id = doc["job_id"][:64]
+        if not job_id.isprintable():
+            job_id = job_id.encode("unicode_escape").decode("ascii")[:64]
+        return job_id.encode("utf-8", "backslashreplace").decode("utf-8")
     return ""

@@ -25,8 +25,36 @@ class JobError(ValueError):
         self.reason = reason
 
 
+SHOW_CHARS = 60  # a rejected value is quoted up to this long, so a reason stays one short line
+
+
 def _is_number(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _finite(value: int | float) -> bool:
+    """Finite and representable as a float (an integer of 400 digits is neither)."""
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
+
+
+def show(value: Any) -> str:
+    """A value as quoted in a reason: repr (escapes newlines), cut short if long."""
+    try:
+        text = repr(value)
+    except ValueError:  # an int too long for repr
+        text = f"<{type(value).__name__}>"
+    return text if len(text) <= SHOW_CHARS else text[: SHOW_CHARS - 3] + "..."
+
+
+def _key(key: Any) -> str:
+    """A mapping key as written in a field path; escaped (repr) if it would break the line."""
+    text = str(key)
+    if text.isprintable() and 0 < len(text) <= SHOW_CHARS:
+        return text
+    return show(text)
 
 
 @dataclass(frozen=True)
@@ -43,9 +71,9 @@ class Num:
     def check(self, value: Any, path: str) -> Any:
         unit = "" if self.unit == "1" else f" {self.unit}"
         if not _is_number(value):
-            raise JobError(path, f"expected a number{f' ({self.unit})' if unit else ''}, got {value!r}")
-        if not math.isfinite(value):
-            raise JobError(path, f"must be finite, got {value}")
+            raise JobError(path, f"expected a number{f' ({self.unit})' if unit else ''}, got {show(value)}")
+        if not _finite(value):
+            raise JobError(path, f"must be finite, got {show(value) if isinstance(value, float) else 'a huge number'}")
         if self.integer and value != int(value):
             raise JobError(path, f"expected a whole number, got {value}")
         if self.gt is not None and not value > self.gt:
@@ -67,11 +95,11 @@ class Str:
 
     def check(self, value: Any, path: str) -> Any:
         if not isinstance(value, str):
-            raise JobError(path, f"expected a string, got {value!r}")
+            raise JobError(path, f"expected a string, got {show(value)}")
         if self.choices is not None and value not in self.choices:
-            raise JobError(path, f"expected one of {', '.join(self.choices)}; got {value!r}")
+            raise JobError(path, f"expected one of {', '.join(self.choices)}; got {show(value)}")
         if self.pattern is not None and not re.fullmatch(self.pattern, value):
-            raise JobError(path, f"{value!r} does not match {self.pattern}")
+            raise JobError(path, f"{show(value)} does not match {self.pattern}")
         return value
 
 
@@ -81,7 +109,7 @@ class Bool:
 
     def check(self, value: Any, path: str) -> Any:
         if not isinstance(value, bool):
-            raise JobError(path, f"expected true or false, got {value!r}")
+            raise JobError(path, f"expected true or false, got {show(value)}")
         return value
 
 
@@ -99,7 +127,7 @@ class Either:
                 return option.check(value, path)
             except JobError:
                 continue
-        raise JobError(path, f"expected {self.expected}, got {value!r}")
+        raise JobError(path, f"expected {self.expected}, got {show(value)}")
 
 
 @dataclass(frozen=True)
@@ -114,7 +142,7 @@ class List:
 
     def check(self, value: Any, path: str) -> Any:
         if not isinstance(value, (list, tuple)):
-            raise JobError(path, f"expected a list, got {value!r}")
+            raise JobError(path, f"expected a list, got {show(value)}")
         if self.length is not None and len(value) != self.length:
             raise JobError(path, f"expected {self.length} values, got {len(value)}")
         if len(value) < self.min_len:
@@ -133,10 +161,10 @@ class Obj:
 
     def check(self, value: Any, path: str) -> Any:
         if not isinstance(value, dict):
-            raise JobError(path, f"expected a mapping, got {value!r}")
+            raise JobError(path, f"expected a mapping, got {show(value)}")
         for key in value:
             if key not in self.fields:
-                raise JobError(_join(path, str(key)), f"unknown key (known: {', '.join(self.fields)})")
+                raise JobError(_join(path, _key(key)), f"unknown key (known: {', '.join(self.fields)})")
         out = {}
         for key, spec in self.fields.items():
             where = _join(path, key)

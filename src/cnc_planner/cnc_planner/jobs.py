@@ -6,6 +6,7 @@ with the field that broke it.
 """
 from __future__ import annotations
 
+import re
 from dataclasses import replace
 from types import SimpleNamespace
 from typing import Callable
@@ -14,7 +15,7 @@ import numpy as np
 
 from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_msgs_py.schema import JobError
-from cnc_msgs_py.units import to_rpm
+from cnc_msgs_py.units import to_mm_per_min, to_rpm
 
 from cnc_servo_bridge.drive import DriveModel
 
@@ -22,6 +23,7 @@ from .builder import PlanBuilder
 from .drilling import RETURN_CLEARANCE, DrillCycle, plan_drilling
 from .kinematics import Kinematics
 from .motion import axis_limits, path_limits
+from .path_job import plan_path
 from .timeline import Event, Piece, Plan
 from .thread_cutting import ThreadError, ThreadSpec, check_thread, plan_thread
 from .turning import TurningError, check_outlines, plan_roughing
@@ -29,6 +31,25 @@ from .vibration import Vibration, VibrationError, VibrationFeed
 
 TWO_PI = 6.283185307179586
 VIBRATION_SERVO_PERIOD = 1e-3  # the bridge's servo period the compensation is computed for
+INTERNAL = "cannot be planned: internal planner error"
+MAX_VIBRATION_FEED_S = 600.0  # one vibrated feed move at most this long: its compensation is
+# precomputed on the servo grid, so its memory grows with its duration
+# The layouts each kind of job can run on (move runs on every layout).
+KIND_LAYOUTS = {
+    "drill": ("mill3", "5ax_table_table", "5ax_head_table"),
+    "turn": ("lathe", "lathe_y"),
+    "thread": ("lathe", "lathe_y"),
+}
+
+
+def to_axes(kin: Kinematics, point: dict[str, float], field: str) -> dict[str, float]:
+    """Kinematics.to_axes, with an unreachable point blamed on the job field it came from."""
+    try:
+        return kin.to_axes(point)
+    except JobError as err:
+        if err.field:
+            raise
+        raise JobError(field, err.reason) from err
 
 
 def check_travel(machine: Machine, axes: dict[str, float], field: str) -> None:
@@ -77,15 +98,22 @@ def feed_move(builder: PlanBuilder, target: dict[str, float], feed_per_rev: floa
         return start
     direction = delta / length
     lim = path_limits(direction, [axis_limits(machine.axes[j]) for j in joints], None)
-    along = replace(machine.axes[joints[0]], max_velocity=lim.velocity,
+    lead = joints[int(np.argmax(np.abs(direction)))]  # errors name the axis that moves most
+    along = replace(machine.axes[lead], max_velocity=lim.velocity,
                     max_acceleration=lim.acceleration, max_jerk=lim.jerk)
-    lead = joints[int(np.argmax(np.abs(direction)))]
+    seconds = length / (feed_per_rev * abs(speed) / TWO_PI)
+    if seconds > MAX_VIBRATION_FEED_S:
+        raise JobError(f"{field}.feed", f"a vibrated feed of {length * 1e3:.4g} mm lasts {seconds:.4g} s at this "
+                       f"feed and spindle speed, more than the maximum {MAX_VIBRATION_FEED_S:g} s")
     try:
         move = VibrationFeed(length, feed_per_rev, vibration, abs(speed), along,
                              start_angle=builder.timelines[SPINDLE].position_at(start),
                              drive_model_factory=lambda: DriveModel(machine, VIBRATION_SERVO_PERIOD, (lead,)))
     except VibrationError as err:
-        raise JobError(str(err).split(":", 1)[0], str(err).split(":", 1)[1].strip()) from err
+        name, _, reason = str(err).partition(":")
+        if not name.startswith("vibration"):  # about the move itself (e.g. its length)
+            name, reason = field, str(err)
+        raise JobError(name, reason.strip()) from err
     builder.event(start, "vibration_feed", start=p0.tolist(), direction=direction.tolist(),
                   joints=joints, length=length, feed_per_rev=feed_per_rev, field=field)
     for dof, joint in enumerate(joints):
@@ -120,7 +148,7 @@ def plan_move(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin:
         field = f"move[{i}].{kind}"
         for key in _program_axes(machine, target, field):
             tip[key] = getattr(target, key)
-        axes = kin.to_axes(tip)
+        axes = to_axes(kin, tip, field)
         check_travel(machine, axes, field)
         builder.event(start if kind == "rapid" else max(start, builder.spindle_ready), kind, move=i)
         if kind == "rapid":
@@ -136,12 +164,16 @@ def drill_cycle(job: SimpleNamespace, machine: Machine, kin: Kinematics) -> Dril
     d = job.drill
     if any(abs(a) > 1e-12 for a in job.setup.rotation_deg[:2]) and machine.layout == "mill3":
         raise JobError("setup.rotation_deg", "a 3-axis mill drills along Z only: tilt needs a 5-axis machine")
+    z_rapid = machine.axes["z"].max_velocity
+    if d.feed > z_rapid:
+        raise JobError("drill.feed", f"{to_mm_per_min(d.feed):g} mm/min is faster than the Z rapid "
+                                     f"{to_mm_per_min(z_rapid):g} mm/min")
     holes = []
     for i, (x, y) in enumerate(d.holes):
-        bottom = kin.to_axes({"x": x, "y": y, "z": d.surface_z - d.depth})
+        bottom = to_axes(kin, {"x": x, "y": y, "z": d.surface_z - d.depth}, f"drill.holes[{i}]")
         check_travel(machine, bottom, f"drill.holes[{i}]")
         holes.append((bottom["x"], bottom["y"]))
-    z_of = lambda z: kin.to_axes({"z": z})["z"]  # noqa: E731  (Z is not rotated on a mill)
+    z_of = lambda z: to_axes(kin, {"z": z}, "drill.surface_z")["z"]  # noqa: E731  (Z is not rotated on a mill)
     r_z = z_of(d.surface_z + d.r_gap)
     check_travel(machine, {"z": r_z + RETURN_CLEARANCE}, "drill.r_gap")
     return DrillCycle(holes=holes, surface_z=z_of(d.surface_z), bottom_z=z_of(d.surface_z - d.depth), r_z=r_z,
@@ -158,8 +190,12 @@ def plan_drill(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin
     builder.timelines["z"].add_hold(builder.end_time(), max(0.0, builder.spindle_ready - builder.end_time()))
     try:
         plan_drilling(builder, cycle)
-    except ValueError as err:
-        raise JobError("drill", str(err)) from err
+    except ValueError as err:  # one line: ruckig appends its whole input to its errors
+        first = (str(err).splitlines() or [""])[0]
+        name, sep, reason = first.partition(": ")
+        if sep and re.fullmatch(r"(holes(\[\d+\])?|feed|mode)", name):  # a field of the drill block
+            raise JobError(f"drill.{name}", reason) from err
+        raise JobError("drill", first) from err
 
 
 def plan_turn(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin: Kinematics) -> None:
@@ -174,9 +210,9 @@ def plan_turn(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin:
     except TurningError as err:
         field, _, reason = str(err).partition(": ")
         raise JobError(field, reason) from err
-    def axes_of(z: float, r: float) -> dict[str, float]:
-        return kin.to_axes({"x": r, "z": z})
-    origin = axes_of(*t.origin)
+    def axes_of(z: float, r: float, field: str = "turn.profile") -> dict[str, float]:
+        return to_axes(kin, {"x": r, "z": z}, field)
+    origin = axes_of(*t.origin, "turn.origin")
     check_travel(machine, origin, "turn.origin")
     builder.spindle(job.spindle_rpm)
     builder.rapid(origin)
@@ -211,6 +247,7 @@ PLANNERS: dict[str, Callable[[SimpleNamespace, Machine, PlanBuilder, Kinematics]
     "drill": plan_drill,
     "turn": plan_turn,
     "thread": plan_thread_job,
+    "path": plan_path,
 }
 
 
@@ -225,11 +262,23 @@ def plan_job(job: SimpleNamespace, machine: Machine, start_position: dict[str, f
     planner = PLANNERS.get(job.kind)
     if planner is None:
         raise JobError("kind", f"'{job.kind}' jobs are not implemented by this planner yet")
+    layouts = KIND_LAYOUTS.get(job.kind)
+    if layouts is not None and machine.layout not in layouts:
+        raise JobError("kind", f"a {machine.layout} machine cannot run '{job.kind}' jobs "
+                               f"(layouts that can: {', '.join(layouts)})")
     if job.spindle_rpm > machine.axes[SPINDLE].max_velocity:
         raise JobError("spindle_rpm", f"exceeds the spindle's {to_rpm(machine.axes[SPINDLE].max_velocity):.0f} rpm")
     builder = PlanBuilder(machine, start_position)
     builder.event(0.0, "job_start", kind=job.kind)
-    planner(job, machine, builder, Kinematics(machine, job.setup, job.tool))
-    plan = builder.build()
+    try:
+        planner(job, machine, builder, Kinematics(machine, job.setup, job.tool))
+        plan = builder.build()
+    except JobError:
+        raise
+    except Exception as err:  # noqa: BLE001 (MemoryError, RecursionError, KeyError, ruckig's ...)
+        # A planner bug must not take the node down with it: the job is refused instead,
+        # as the kind's block (INTERNAL marks it, so tests can tell it from a real check).
+        first = (str(err).splitlines() or [""])[0][:120]
+        raise JobError(job.kind, f"{INTERNAL} ({type(err).__name__}: {first})") from err
     plan.events.append(Event(plan.duration, "job_end"))
     return plan

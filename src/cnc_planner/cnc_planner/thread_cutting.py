@@ -65,6 +65,8 @@ COMPENSATION_BAND = (0.05, 0.12)  # of the servo rate (50..120 Hz at 1 ms): abov
 LEAD_TIME = 0.06  # s at rest before the ramp: the band-limited compensation leads this far
 SETTLED_COUNTS = 0.25  # encoder counts: a command correction below this has settled
 MAX_JOIN_CYCLES = 4  # the ramp may take this many vibration cycles to catch the helix
+MAX_PASS_REVS = 2000  # spindle revolutions of one pass: checks and plans sample every one
+MAX_PASS_S = 600.0  # s of helix per pass: a longer pass is a mistyped pitch or speed
 
 
 class ThreadError(ValueError):
@@ -303,6 +305,24 @@ def _check_room(spec: ThreadSpec, machine: Machine) -> None:
             )
 
 
+def _check_length(spec: ThreadSpec) -> None:
+    """A pass of bounded revolutions and time: planning and checks sample every revolution."""
+    length = abs(spec.end_z - spec.start_z)
+    revs = length / spec.pitch
+    if revs > MAX_PASS_REVS:
+        raise ThreadError(
+            f"thread.pitch: {_mm(spec.pitch)} over {_mm(length)} makes {revs:.4g} revolutions per pass, "
+            f"more than the maximum {MAX_PASS_REVS}; need pitch >= {_mm(length / MAX_PASS_REVS)}"
+        )
+    seconds = length / spec.lead_speed
+    if seconds > MAX_PASS_S:
+        least = math.ceil(_rpm(TWO_PI * length / spec.pitch / MAX_PASS_S))
+        raise ThreadError(
+            f"spindle_rpm: at {_rpm(spec.spindle_speed):.4g} rpm a pass takes {seconds:.4g} s, more than the "
+            f"maximum {MAX_PASS_S:g} s; need >= {least} rpm"
+        )
+
+
 def _chip_revs(spec: ThreadSpec, vib: ThreadVibration) -> np.ndarray:
     """Longest continuous cut (revolutions) of every vibrated pass on the ideal geometry,
     judged like thread_analysis judges feedback: against the envelope of earlier passes."""
@@ -413,6 +433,7 @@ def check_thread(spec: ThreadSpec, machine: Machine) -> None:
     if spec.vibration is not None:
         _check_vibration_fields(spec.vibration)
     _check_speed(spec, machine)
+    _check_length(spec)  # before the vibration checks, which sample every revolution
     if spec.vibration is not None:
         _check_chips(spec, spec.vibration)
         _check_follow(spec, machine)

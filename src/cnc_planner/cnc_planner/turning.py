@@ -35,6 +35,7 @@ Point = tuple[float, float]  # (z, x): x is a radius, m
 
 EPS = 1.0e-12  # m: below float noise at workpiece sizes; geometric decisions use it
 TOUCH = 1.0e-9  # m: the tool touches material only where it lies deeper than this
+MAX_PASSES = 2000  # roughing passes: a depth of cut that needs more is a typing error, and would plan for ages
 
 
 class TurningError(ValueError):
@@ -353,6 +354,12 @@ def _check_parameters(stock: list[Point], profile: list[Point], depth_of_cut: fl
         raise TurningError(f"turn.finish_allowance: must not be negative (got {_fmt(finish_allowance)} mm)")
     if len(origin) != 2 or not all(math.isfinite(v) for v in origin):
         raise TurningError("turn.origin: must be a finite [z, radius] pair")
+    span = max(r for _, r in stock) - min(r for _, r in profile)
+    if span / depth_of_cut > MAX_PASSES:
+        raise TurningError(
+            f"turn.depth_of_cut: {_fmt(depth_of_cut)} mm takes {span / depth_of_cut:.4g} passes over "
+            f"{_fmt(span)} mm of stock, more than the maximum {MAX_PASSES}; need >= {_fmt(span / MAX_PASSES)} mm"
+        )
     top = max(max(r for _, r in stock), max(r for _, r in profile) + finish_allowance)
     right = max(stock[0][0], profile[0][0])
     if not (origin[1] > top or origin[0] > right):

@@ -73,7 +73,7 @@ class BridgeNode(Node):
         head = msg.header.stamp.sec * NS + msg.header.stamp.nanosec
         times = np.array([head + p.time_from_start.sec * NS + p.time_from_start.nanosec for p in msg.points], dtype=np.int64)
         try:
-            p, v, a = (np.array([getattr(pt, k) for pt in msg.points], dtype=float).reshape(len(msg.points), -1)
+            p, v, a = (np.array([getattr(pt, k) for pt in msg.points], dtype=float)
                        for k in ("positions", "velocities", "accelerations"))
             self.loop.accept(list(msg.joint_names), times, p, v, a, self.t_ns + self.period_ns)
         except (SetpointError, ValueError) as err:

@@ -77,10 +77,11 @@ class SetpointBuffer:
             raise SetpointError(f"joint names must list every joint once (missing {missing})")
         if len(times_ns) == 0:
             raise SetpointError("chunk has no points")
+        for what, values in (("positions", p), ("velocities", v), ("accelerations", a)):
+            if np.ndim(values) != 2 or np.shape(values) != (len(times_ns), len(names)):
+                raise SetpointError(f"every point needs {what} for every joint")
         order = [names.index(j) for j in self.joints]
         p, v, a = p[:, order], v[:, order], a[:, order]
-        if p.shape != v.shape or p.shape != a.shape:
-            raise SetpointError("every point needs positions, velocities and accelerations")
         if not (np.isfinite(p).all() and np.isfinite(v).all() and np.isfinite(a).all()):
             raise SetpointError("chunk holds a NaN or infinite value")
         if len(times_ns) > 1 and np.any(np.diff(times_ns) <= 0):

@@ -15,7 +15,7 @@ import numpy as np
 
 from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_msgs_py.schema import JobError
-from cnc_msgs_py.units import to_mm_per_min, to_rpm
+from cnc_msgs_py.units import to_mm, to_mm_per_min, to_rpm
 
 from cnc_servo_bridge.drive import DriveModel
 
@@ -59,8 +59,8 @@ def check_travel(machine: Machine, axes: dict[str, float], field: str) -> None:
         if not axis.within_travel(position):
             raise JobError(
                 field,
-                f"puts axis {name} at {position * 1e3:.3f} mm, outside its travel "
-                f"[{axis.min * 1e3:g}, {axis.max * 1e3:g}] mm",
+                f"puts axis {name} at {to_mm(position):.3f} mm, outside its travel "
+                f"[{to_mm(axis.min):g}, {to_mm(axis.max):g}] mm",
             )
 
 
@@ -103,7 +103,7 @@ def feed_move(builder: PlanBuilder, target: dict[str, float], feed_per_rev: floa
                     max_acceleration=lim.acceleration, max_jerk=lim.jerk)
     seconds = length / (feed_per_rev * abs(speed) / TWO_PI)
     if seconds > MAX_VIBRATION_FEED_S:
-        raise JobError(f"{field}.feed", f"a vibrated feed of {length * 1e3:.4g} mm lasts {seconds:.4g} s at this "
+        raise JobError(f"{field}.feed", f"a vibrated feed of {to_mm(length):.4g} mm lasts {seconds:.4g} s at this "
                        f"feed and spindle speed, more than the maximum {MAX_VIBRATION_FEED_S:g} s")
     try:
         move = VibrationFeed(length, feed_per_rev, vibration, abs(speed), along,

@@ -4,19 +4,17 @@ from __future__ import annotations
 import json
 import sys
 
-import rclpy
 from builtin_interfaces.msg import Duration, Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
-from rclpy.signals import SignalHandlerOptions
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from cnc_msgs_py import qos, topics
-from cnc_msgs_py.machine import MachineError, load_machine
+from cnc_msgs_py.machine import load_machine
+from cnc_msgs_py.node import run_node
 from cnc_msgs_py.status import Status, decode_cancel
 
 from .executive import Executive, Output, Settings
@@ -133,22 +131,7 @@ class PlannerNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    # Ctrl-C (SIGINT) becomes KeyboardInterrupt in spin, so the node is destroyed cleanly.
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    try:
-        node = PlannerNode()
-    except (MachineError, ValueError) as err:
-        print(f"cnc_planner: {err}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(PlannerNode, "cnc_planner", args)
 
 
 if __name__ == "__main__":

@@ -20,6 +20,7 @@ import numpy as np  # noqa: E402
 from matplotlib.patches import Patch, Rectangle  # noqa: E402
 
 from cnc_msgs_py.machine import SPINDLE, Machine, load_machine  # noqa: E402
+from cnc_msgs_py.units import to_mm
 from cnc_servo_bridge.aircut import AircutReport, analyze_aircut  # noqa: E402
 from cnc_servo_bridge.recording import Run  # noqa: E402
 
@@ -29,7 +30,7 @@ from .report import job_window, last_job  # noqa: E402
 from .turning import plan_roughing  # noqa: E402
 
 DPI = 110
-MM = 1e3  # m -> mm
+MM = to_mm(1.0)  # m -> mm, as a scale for plot axes
 LINE_POINTS = 4000  # min/max buckets per time trace: peaks survive, drawing stays fast
 PATH_POINTS = 20000  # samples per drawn tool path (1 kHz feedback of a smooth path)
 PHASE_BINS = 360  # 1 deg columns of the air-cut map

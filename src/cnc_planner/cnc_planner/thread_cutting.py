@@ -37,6 +37,7 @@ import numpy as np
 from ruckig import InputParameter, RuckigError, Trajectory
 
 from cnc_msgs_py.machine import SPINDLE, Machine
+from cnc_msgs_py.units import deg, to_mm
 from cnc_servo_bridge.drive import DriveModel
 from cnc_servo_bridge.stop import velocity_trajectory
 from cnc_servo_bridge.thread_analysis import (
@@ -97,7 +98,7 @@ class ThreadSpec:
     spindle_speed: float
     passes: int = 6
     depths: tuple[float, ...] | None = None
-    infeed_angle: float = math.radians(29.5)
+    infeed_angle: float = deg(29.5)
     spring_passes: int = 1
     starts: int = 1
     internal: bool = False
@@ -187,7 +188,7 @@ def _rpm(omega: float) -> float:
 
 
 def _mm(value: float) -> str:
-    return f"{value * 1e3:.4g} mm"
+    return f"{to_mm(value):.4g} mm"
 
 
 def _ramp(speed: float, machine: Machine) -> Trajectory:
@@ -206,12 +207,12 @@ def _wave_maxima() -> np.ndarray:
 def _check_fields(spec: ThreadSpec) -> None:
     def positive(field: str, value: float) -> None:
         if not (math.isfinite(value) and value > 0):
-            raise ThreadError(f"{field}: must be > 0, got {value * 1e3:g} mm")
+            raise ThreadError(f"{field}: must be > 0, got {to_mm(value):g} mm")
 
     positive("thread.pitch", spec.pitch)
     positive("thread.major_radius", spec.major_radius)
     if not (math.isfinite(spec.depth) and spec.depth > 0):
-        raise ThreadError(f"thread.depth: must be > 0, got {spec.depth * 1e3:g} mm")
+        raise ThreadError(f"thread.depth: must be > 0, got {to_mm(spec.depth):g} mm")
     if spec.depth >= spec.major_radius:
         raise ThreadError(
             f"thread.depth: {_mm(spec.depth)} is not smaller than major_radius {_mm(spec.major_radius)}"
@@ -265,7 +266,7 @@ def _check_speed(spec: ThreadSpec, machine: Machine) -> None:
         )
     if spec.lead_speed > z.max_velocity:
         raise ThreadError(
-            f"thread.pitch: {spec.pitch * 1e3:g} mm/rev needs z speed {spec.lead_speed:.3g} m/s at "
+            f"thread.pitch: {to_mm(spec.pitch):g} mm/rev needs z speed {spec.lead_speed:.3g} m/s at "
             f"{_rpm(omega):.0f} rpm, more than the z axis's {z.max_velocity:g} m/s; "
             f"max {math.floor(_rpm(z.max_velocity * TWO_PI / spec.pitch)):.0f} rpm"
         )
@@ -285,7 +286,7 @@ def _check_room(spec: ThreadSpec, machine: Machine) -> None:
     if spec.start_z < need:
         raise ThreadError(
             f"thread.start_z: {_mm(spec.start_z)} leaves too little room before the face to reach the "
-            f"lead speed {spec.lead_speed * 1e3:.4g} mm/s: needs {_mm(need)} (ramp and flank offset)"
+            f"lead speed {to_mm(spec.lead_speed):.4g} mm/s: needs {_mm(need)} (ramp and flank offset)"
         )
     x_axis, z_axis = machine.axis("x"), machine.axis("z")
     x_clear = spec.major_radius - spec.radial * RETRACT_CLEARANCE
@@ -656,8 +657,8 @@ def plan_thread(builder: PlanBuilder, spec: ThreadSpec, servo_period: float = 1e
                 builder.timelines[joint].add(Piece(t0, motion.duration, motion.sampler(j)), motion.end[j])
             info = {
                 "index": cut.index, "start": start, "spring": cut.spring,
-                "depth_mm": cut.depth * 1e3, "doc_mm": cut.doc * 1e3,
-                "amplitude_mm": cut.amplitude * 1e3,
+                "depth_mm": to_mm(cut.depth), "doc_mm": to_mm(cut.doc),
+                "amplitude_mm": to_mm(cut.amplitude),
                 "vibration_per_rev": cut.per_rev or None,
                 "vibration_phase_deg": cut.phase * 360.0 if cut.amplitude else None,
                 "spindle_phase_deg": math.degrees(phase),

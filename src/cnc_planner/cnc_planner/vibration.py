@@ -26,6 +26,7 @@ import numpy as np
 from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
 from cnc_msgs_py.machine import Axis
+from cnc_msgs_py.units import to_mm
 
 if TYPE_CHECKING:
     from cnc_servo_bridge.drive import DriveModel
@@ -361,8 +362,8 @@ class VibrationFeed:
                 if stop is not None and stop.position_extrema[0].max <= self._length + 1e-12:
                     return float(t_stop), stop
         raise VibrationError(
-            f"length: a {self._length * 1e3:g} mm feed is too short to ramp onto the vibration "
-            f"at D={d:g} and stop (one vibration reaches {reach * 1e3:.3g} mm)"
+            f"length: a {to_mm(self._length):g} mm feed is too short to ramp onto the vibration "
+            f"at D={d:g} and stop (one vibration reaches {to_mm(reach):.3g} mm)"
         )
 
     def _ideal(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -12,11 +12,8 @@ import sys
 import time
 
 import numpy as np
-import rclpy
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rclpy.executors import ExternalShutdownException
-from rclpy.signals import SignalHandlerOptions
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -24,7 +21,8 @@ from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory
 
 from cnc_msgs_py import qos, topics
-from cnc_msgs_py.machine import MachineError, load_machine
+from cnc_msgs_py.machine import load_machine
+from cnc_msgs_py.node import run_node
 
 from .servo import Feedback, ServoLoop
 from .setpoints import SetpointError
@@ -159,22 +157,7 @@ class BridgeNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    # Ctrl-C (SIGINT) becomes KeyboardInterrupt in spin, so the node is destroyed cleanly.
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    try:
-        node = BridgeNode()
-    except (MachineError, ValueError) as err:
-        print(f"cnc_servo_bridge: {err}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(BridgeNode, "cnc_servo_bridge", args)
 
 
 if __name__ == "__main__":

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from cnc_msgs_py.units import to_mm
+
 
 def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Start indices and end indices (exclusive) of the True runs of a boolean array."""
@@ -100,7 +102,7 @@ def analyze_drilling(
             "overlap_up_s": overlap_up, "cycle_time_s": r_up - r_up_prev,
         })
         if surface_z is not None:
-            rows[j]["depth_mm"] = float((surface_z - zw[kd:ku].min()) * 1e3)
+            rows[j]["depth_mm"] = to_mm(float(surface_z - zw[kd:ku].min()))
         r_up_prev = r_up
     return {"holes": [rows[j] for j in range(len(h))], "safety_violations": int(np.sum(off)),
             "cycle_time_s": job_end - job_start}
@@ -108,7 +110,7 @@ def analyze_drilling(
 
 def _hole(index: int, xy: np.ndarray, surface_z: float | None) -> dict:
     """A hole's row before analysis: every time None until the hole is found drilled."""
-    row = {"index": index, "x_mm": float(xy[0] * 1e3), "y_mm": float(xy[1] * 1e3),
+    row = {"index": index, "x_mm": to_mm(float(xy[0])), "y_mm": to_mm(float(xy[1])),
            "in_position_s": None, "r_down_s": None, "r_up_s": None,
            "overlap_down_s": None, "overlap_up_s": None, "cycle_time_s": None}
     if surface_z is not None:

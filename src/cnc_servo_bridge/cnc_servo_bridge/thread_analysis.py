@@ -27,8 +27,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cnc_msgs_py.units import deg, mm, to_mm
+
 TWO_PI = 2.0 * math.pi
-M_PER_MM = 1e-3
 CUT_TOLERANCE = 0.5e-6  # m: deeper than the envelope by more than this is cutting
 CUTTING_PASS = 0.05e-3  # m: a pass whose depth of cut exceeds this must break its chips
 DEPTH_TOLERANCE = 0.02e-3  # m: full depth reached and never exceeded within this
@@ -59,12 +60,12 @@ class Groove:
     def from_job(cls, thread: dict) -> Groove:
         """Only the geometric keys are read; pass counts and depths are found in the data."""
         return cls(
-            start_z=thread["start_z"] * M_PER_MM,
-            end_z=thread["end_z"] * M_PER_MM,
-            major_radius=thread["major_radius"] * M_PER_MM,
-            lead=thread["pitch"] * M_PER_MM,
-            depth=thread["depth"] * M_PER_MM,
-            infeed_angle=math.radians(thread.get("infeed_angle", 29.5)),
+            start_z=mm(thread["start_z"]),
+            end_z=mm(thread["end_z"]),
+            major_radius=mm(thread["major_radius"]),
+            lead=mm(thread["pitch"]),
+            depth=mm(thread["depth"]),
+            infeed_angle=deg(thread.get("infeed_angle", 29.5)),
             starts=int(thread.get("starts", 1)),
             internal=bool(thread.get("internal", False)),
         )
@@ -241,16 +242,16 @@ def analyze_thread(
             "t_start": float(t[i0]),
             "t_end": float(t[i1]),
             "coverage": float(covered.mean()),
-            "depth_mm": reached / M_PER_MM,
-            "doc_mm": doc / M_PER_MM,
-            "max_cut_mm": float(np.nanmax(np.maximum(cut, 0.0))) / M_PER_MM if covered.any() else 0.0,
+            "depth_mm": to_mm(reached),
+            "doc_mm": to_mm(doc),
+            "max_cut_mm": to_mm(float(np.nanmax(np.maximum(cut, 0.0)))) if covered.any() else 0.0,
             "cutting": bool(doc > CUTTING_PASS),
             "max_chip_revs": float(longest_runs(cutting[None, :])[0] / POINTS_PER_REV),
             "aircut_share": float(1.0 - cutting[covered].mean()) if covered.any() else 1.0,
             "vibration_per_rev": None if vib is None else vib[0],
             "vibration_phase_deg": None if vib is None else vib[1],
-            "vibration_amplitude_mm": 0.0 if vib is None else vib[2] / M_PER_MM,
-            "helix_residual_mm": float(np.max(np.abs(residual[sel][inside[sel]]), initial=0.0)) / M_PER_MM,
+            "vibration_amplitude_mm": 0.0 if vib is None else to_mm(vib[2]),
+            "helix_residual_mm": to_mm(float(np.max(np.abs(residual[sel][inside[sel]]), initial=0.0))),
         })
 
     cutting_passes = [p for p in passes if p["cutting"]]
@@ -266,11 +267,11 @@ def analyze_thread(
         "cutting_passes": len(cutting_passes),
         "max_chip_revs": max_chip,
         "chips_broken": bool(max_chip <= CHIP_LIMIT_REVS),
-        "depth_error_mm": depth_error / M_PER_MM,
-        "overcut_mm": overcut / M_PER_MM,
+        "depth_error_mm": to_mm(depth_error),
+        "overcut_mm": to_mm(overcut),
         "full_depth": bool(depth_error <= DEPTH_TOLERANCE and overcut <= DEPTH_TOLERANCE),
-        "doc_never_grows": bool(all(b <= a + CUT_TOLERANCE / M_PER_MM for a, b in zip(docs, docs[1:]))),
-        "helix_residual_mm": helix_residual / M_PER_MM,
+        "doc_never_grows": bool(all(b <= a + to_mm(CUT_TOLERANCE) for a, b in zip(docs, docs[1:]))),
+        "helix_residual_mm": to_mm(helix_residual),
         "helix_phase_deg": math.degrees(TWO_PI * (groove.start_z - reference) / (s * lead))
         % (360.0 / groove.starts),
         "infeed_angle_deg": math.degrees(math.atan(slope)),

@@ -9,7 +9,7 @@ STAMP   := $(VENV)/.installed
 DEMO_JOB ?= config/jobs/drill_row.yaml
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 
-.PHONY: setup browser demo test bench bench-peer clean
+.PHONY: setup browser demo cell-demo test bench bench-peer clean
 
 setup: $(STAMP) browser
 
@@ -28,6 +28,11 @@ $(STAMP): requirements.txt src/cnc_msgs_py/setup.py src/cnc_planner/setup.py src
 
 demo: setup
 	$(VENV)/bin/cnc-run $(DEMO_JOB) --out runs/$$(date +%Y%m%d-%H%M%S)
+
+# A cell: two mills and a lathe at once, one DDS domain, each under /cell/m<i>/cnc.
+cell-demo: setup
+	$(VENV)/bin/cnc-cell config/jobs/drill_row.yaml config/jobs/move_mill3.yaml \
+	  config/jobs/thread_m12.yaml --out runs/cell-$$(date +%Y%m%d-%H%M%S)
 
 test: setup
 	$(PY) -m pytest

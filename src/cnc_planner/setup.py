@@ -36,5 +36,6 @@ setup(
         "cnc-run = cnc_planner.cli:run_main",
         "cnc-plan = cnc_planner.cli:plan_main",
         "cnc-analyze = cnc_planner.cli:analyze_main",
+        "cnc-cell = cnc_planner.cli:cell_main",
     ]},
 )

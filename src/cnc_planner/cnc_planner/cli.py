@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -15,6 +16,7 @@ import numpy as np
 from cnc_msgs_py.job import job_id_of, load_job_file, parse_job
 from cnc_msgs_py.machine import MachineError, load_machine
 from cnc_msgs_py.schema import JobError
+from cnc_msgs_py.topics import NAMESPACE
 
 from .jobs import plan_job
 from .progress import Progress, job_totals
@@ -42,6 +44,7 @@ def run_main(argv: list[str] | None = None) -> int:
     parser.add_argument("job", help="job document (YAML or JSON)")
     parser.add_argument("--out", type=Path, help="output directory (default runs/<timestamp>)")
     parser.add_argument("--timeout", type=float, default=900.0, help="wall-clock limit (s)")
+    parser.add_argument("--namespace", default=NAMESPACE, help=f"the machine's namespace (default {NAMESPACE})")
     args = parser.parse_args(argv)
     out = args.out or Path("runs") / time.strftime("%Y%m%d-%H%M%S")
     if (out / "bag").exists():
@@ -65,7 +68,7 @@ def run_main(argv: list[str] | None = None) -> int:
     progress = Progress(totals=job_totals(doc))
     try:
         status = run_job(json.dumps(doc), job_id_of(doc), machine.name, out / "bag",
-                         timeout=args.timeout, progress=progress)
+                         timeout=args.timeout, progress=progress, namespace=args.namespace)
     except RunError as err:
         progress.close()
         return _fail("cnc-run", str(err), 3)
@@ -88,6 +91,35 @@ def summary(report: dict) -> str:
                   f"  max following error     {fe} (mm / mrad)",
                   f"  setpoints {report['setpoints']} in {report['chunks']} chunks, {report['chunks_lost']} lost"]
     return "\n".join(lines)
+
+
+def cell_main(argv: list[str] | None = None) -> int:
+    """cnc-cell JOB [JOB ...] --out DIR: one machine pair per job, all at once, in one DDS
+    domain under /cell/m<i>/cnc, each recorded to DIR/m<i>/ (bag, report, plots)."""
+    parser = argparse.ArgumentParser(prog="cnc-cell", description=cell_main.__doc__)
+    parser.add_argument("jobs", nargs="+", help="job documents, one per machine")
+    parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--timeout", type=float, default=900.0, help="wall-clock limit per machine (s)")
+    args = parser.parse_args(argv)
+    from .runner import local_dds_env
+
+    env = local_dds_env()  # one domain for the whole cell: namespaces keep the machines apart
+    runs = []
+    for i, job in enumerate(args.jobs, start=1):
+        out = args.out / f"m{i}"
+        command = [sys.executable, "-m", "cnc_planner.cli", "run", str(job), "--out", str(out),
+                   "--namespace", f"/cell/m{i}/cnc", "--timeout", str(args.timeout)]
+        log = (args.out / f"m{i}.log")
+        log.parent.mkdir(parents=True, exist_ok=True)
+        runs.append((job, out, subprocess.Popen(command, env=env, stdout=log.open("w"), stderr=subprocess.STDOUT)))
+    print(f"cnc-cell: {len(runs)} machines in ROS_DOMAIN_ID {env['ROS_DOMAIN_ID']}, logs in {args.out}/m<i>.log")
+    worst = 0
+    for job, out, proc in runs:
+        code = proc.wait()
+        worst = max(worst, code)
+        state = json.loads((out / "report.json").read_text())["state"] if (out / "report.json").exists() else "no report"
+        print(f"  {out.name}: {job} -> {state} (exit {code})")
+    return worst
 
 
 def plan_main(argv: list[str] | None = None) -> int:
@@ -135,3 +167,8 @@ def analyze_main(argv: list[str] | None = None) -> int:
     else:
         print(json.dumps(report, indent=2))
     return 0
+
+
+if __name__ == "__main__":  # python -m cnc_planner.cli run|plan|analyze|cell ...
+    TOOLS = {"run": run_main, "plan": plan_main, "analyze": analyze_main, "cell": cell_main}
+    sys.exit(TOOLS[sys.argv[1]](sys.argv[2:]))

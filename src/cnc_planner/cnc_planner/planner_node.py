@@ -102,7 +102,8 @@ class PlannerNode(Node):
     def on_diagnostics(self, msg: DiagnosticArray) -> None:
         stamp = msg.header.stamp.sec * NS + msg.header.stamp.nanosec
         for status in msg.status:
-            if status.level >= DiagnosticStatus.ERROR and status.name.startswith("cnc_servo_bridge"):
+            mine = status.hardware_id == self.get_namespace()  # not another machine's bridge
+            if mine and status.level >= DiagnosticStatus.ERROR and status.name.startswith("cnc_servo_bridge"):
                 # The bridge stops the drives itself; the job ends here, unless the alarm
                 # is an old one that the running job's first setpoints are clearing.
                 self.publish(Output(statuses=self.executive.abort(status.message, self.now_ns(), stop=False,

@@ -49,8 +49,20 @@ def local_dds_env(domain_id: int | None = None) -> dict[str, str]:
     return env
 
 
+def topic_name(topic: str, namespace: str) -> str:
+    """The full name of a recorded topic. Outside the default namespace (a machine in a
+    cell) /clock and /diagnostics become the machine's own, so that several simulated
+    machines in one DDS domain keep their clocks and alarms apart."""
+    if not topic.startswith("/"):
+        return f"{namespace}/{topic}"
+    return topic if namespace == topics.NAMESPACE else f"{namespace}{topic}"
+
+
 def node_command(module: str, namespace: str, params: dict[str, object]) -> list[str]:
     args = [sys.executable, "-m", module, "--ros-args", "-r", f"__ns:={namespace}"]
+    for topic in (topics.CLOCK, topics.DIAGNOSTICS):
+        if topic_name(topic, namespace) != topic:
+            args += ["-r", f"{topic}:={topic_name(topic, namespace)}"]
     for key, value in params.items():
         args += ["-p", f"{key}:={str(value).lower() if isinstance(value, bool) else value}"]
     return args
@@ -85,8 +97,8 @@ class Recorder(Node):
         self.planner_heartbeats = 0  # planner diagnostics received (it is up and talking)
         self.goal_pub = self.create_publisher(String, topics.JOB_GOAL, qos.JOB_GOAL)
         for topic, msgtype in RECORDED.items():
-            name = topic if topic.startswith("/") else f"{namespace}/{topic}"
-            self.create_subscription(message_class(msgtype), topic, self._writer(name, topic), QOS[topic], raw=True)
+            name = topic_name(topic, namespace)
+            self.create_subscription(message_class(msgtype), name, self._writer(name, topic), QOS[topic], raw=True)
 
     def _writer(self, name: str, topic: str) -> Callable[[bytes], None]:
         def write(data: bytes) -> None:
@@ -128,7 +140,7 @@ class Session:
                                     {"machine": machine, "use_sim_time": simulation}),
         }
         self.procs = {name: subprocess.Popen(cmd, env=self.env) for name, cmd in self.commands.items()}
-        self.bag = BagWriter(bag_dir, {(t if t.startswith("/") else f"{namespace}/{t}"): m for t, m in RECORDED.items()})
+        self.bag = BagWriter(bag_dir, {topic_name(t, namespace): m for t, m in RECORDED.items()})
         rclpy.init()
         self.recorder = Recorder(self.bag, namespace)
         self.cancel_pub = self.recorder.create_publisher(String, topics.JOB_CANCEL, qos.JOB_CANCEL)
@@ -213,7 +225,7 @@ class Session:
 
 
 def run_job(text: str, job_id: str, machine: str, bag_dir: Path, *, timeout: float = 900.0,
-            progress: Callable[[dict], None] | None = None) -> dict:
+            progress: Callable[[dict], None] | None = None, namespace: str = topics.NAMESPACE) -> dict:
     """Run one job document (JSON text) through both nodes, recording to ``bag_dir``.
 
     Returns the job's final status document.
@@ -221,7 +233,7 @@ def run_job(text: str, job_id: str, machine: str, bag_dir: Path, *, timeout: flo
     Raises:
         RunError: the nodes did not come up, or the job did not end within ``timeout``.
     """
-    with Session(machine, bag_dir, progress=progress) as session:
+    with Session(machine, bag_dir, progress=progress, namespace=namespace) as session:
         session.submit(text)
         status = session.wait(job_id, timeout)
         if status["state"] != "rejected":

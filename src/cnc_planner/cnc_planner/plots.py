@@ -58,6 +58,8 @@ def write_plots(run: Run, report: dict, out_dir: Path) -> list[Path]:
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     written = [_save(_following_error(run, window, report), out_dir / "following_error.png")]
+    if "thread" in report:
+        written.append(_save(_thread_passes(report["thread"], report["job_id"]), out_dir / "thread_passes.png"))
     if not {"drill", "turn", "aircut"} & report.keys():
         return written
     _, job = last_job(run)
@@ -73,6 +75,32 @@ def write_plots(run: Run, report: dict, out_dir: Path) -> list[Path]:
             written.append(_save(_aircut(feed, report["aircut"]), out_dir / "aircut.png"))
             written.append(_save(_aircut_map(feed), out_dir / "aircut_map.png"))
     return written
+
+
+def _thread_passes(thread: dict, job_id: str) -> plt.Figure:
+    """Per pass, from the feedback: the depth reached and each pass's depth of cut (which
+    must never grow), and the longest chip in spindle revolutions against the one-rev line."""
+    passes = thread["passes"]
+    index = np.array([p["index"] for p in passes])
+    depth = np.array([p["depth_mm"] for p in passes])
+    doc = np.array([p["doc_mm"] for p in passes])
+    chip = np.array([p["max_chip_revs"] for p in passes])
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True)
+    top.bar(index - 0.2, depth, width=0.4, color="tab:blue", label="depth reached (mm)")
+    top.bar(index + 0.2, doc, width=0.4, color="tab:orange", label="depth of cut (mm)")
+    top.set_ylabel("mm")
+    top.set_title(f"{job_id}: thread passes on feedback")
+    top.legend(loc="upper left", fontsize=8)
+    top.grid(alpha=0.3)
+    bottom.bar(index, chip, width=0.5, color=np.where(chip <= 1.0, "tab:green", "tab:red"))
+    bottom.axhline(1.0, color="k", ls="--", lw=1, label="one spindle revolution")
+    bottom.set_ylabel("longest chip (rev)")
+    bottom.set_xlabel("pass")
+    bottom.set_xticks(index)
+    bottom.legend(loc="upper left", fontsize=8)
+    bottom.grid(alpha=0.3)
+    fig.tight_layout()
+    return fig
 
 
 def _save(fig: plt.Figure, path: Path) -> Path:

@@ -23,13 +23,30 @@ Z descent / the next X/Y start by whole servo periods until the feedback never s
 tip below R with X/Y off the hole; both gaps start at the smallest value that keeps the
 commands themselves safe, so the cycle loses only what the feedback demands.
 
+X/Y pre-compensation (compensate_xy, on by default): with kp = 50/s and no acceleration
+feed-forward the X/Y feedback settles within the tolerance only 30-50 ms after a rapid's
+command ends, and Z has to wait for it. Each S1 command is therefore the ruckig move plus
+a correction learned against the drive model (vibration.learn_correction: the exact
+inverse of the drive's linear part, refined against DriveModel.simulate), so that the
+FEEDBACK follows the ruckig move and is in position when the move ends. The command
+leads the move by XY_COMMAND_LEAD servo periods (from rest) and keeps settling
+(exponentially, at the position loop's rate, with the drive at rest) for up to ~0.2 s
+after it; consecutive corrections simply add (the drive is linear), so a tail may run
+into the next hole's S1. S1 starts on the servo grid (its correction is learned on it).
+The command stays within the axis velocity and acceleration limits (finite differences,
+tested), but where ruckig switches jerk the correction briefly needs more jerk than the
+axis limit, as in vibration.py; the motion the feedback follows is the ruckig move. The
+command itself arrives at the hole some tens of ms after the feedback does, so only the
+feedback, not the command, is safe at R then. compensate_xy=False plans the plain ruckig
+commands (then both are safe), for comparison.
+
 Conventional cycle (overlap=False), like G81 with G99: X/Y rapid, Z rapid to R, feed to
 depth, rapid up to R + RETURN_CLEARANCE, each move after the previous one ends.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable
 
 import numpy as np
@@ -41,6 +58,7 @@ from cnc_servo_bridge.drive import DriveModel
 from .builder import PlanBuilder
 from .motion import Limits, RuckigMove, axis_limits, calculate, point_to_point
 from .timeline import Piece, Plan
+from .vibration import COMPENSATION_TAIL, learn_correction, settled
 
 # Conventional cycle: X/Y travel at R + 1 mm (G99 returns to R; the 1 mm keeps the tip
 # above R on feedback too, where Z reads up to ~0.3 mm below its command while braking).
@@ -51,6 +69,10 @@ GENTLE_ROUNDS = 6       # bisection rounds for the gentle air acceleration
 MODE3_GRID = 24         # retract speeds tried per level of the mode-3 search
 FINE_STEP = 1e-4        # s, sampling of tolerance crossings and of a_z^2
 XY = ("x", "y")
+XY_LEAD_PERIODS = 8     # rest before an S1 move in its learning reference: room to lead
+XY_FIXED_PERIODS = 4    # of which uncorrected: the compensated command leads by the rest
+XY_COMMAND_LEAD = XY_LEAD_PERIODS - XY_FIXED_PERIODS + 1  # periods: from its last rest sample
+XY_SETTLED_COUNTS = 0.25  # encoder counts: an X/Y correction below this has settled
 
 
 @dataclass(frozen=True)
@@ -60,6 +82,8 @@ class DrillCycle:
     mode None lets the planner choose the retract law per hole; 1/2/3 force it.
     xy_tolerance: X/Y must be this close to the hole, on feedback, whenever the tip is
     below R. servo_period: the bridge's period, for the drive model the timing uses.
+    compensate_xy: pre-compensate the overlapped cycle's X/Y commands with the drive
+    model, so that the X/Y feedback is in position when the ruckig move ends.
     """
 
     holes: list[tuple[float, float]]
@@ -72,6 +96,7 @@ class DrillCycle:
     gentle_air_accel: bool = False
     xy_tolerance: float = 1e-5
     servo_period: float = 1e-3
+    compensate_xy: bool = True
 
     def __post_init__(self) -> None:
         if not self.holes:
@@ -137,6 +162,8 @@ class _XYMove:
     move: RuckigMove | None
     leave: float
     arrive: float
+    joints: tuple[str, ...] = ()
+    correction: np.ndarray | None = None  # (3, k, joints) from XY_COMMAND_LEAD periods before
 
     @property
     def duration(self) -> float:
@@ -164,11 +191,19 @@ class _Job:
         self.fast = self._fast_exit()
         position = (start["x"], start["y"])
         self.xy: list[_XYMove] = []
+        corrections: dict[tuple, np.ndarray] = {}
         for i, hole in enumerate(cycle.holes):
             for axis, value in zip(XY, hole):
                 if not machine.axes[axis].within_travel(value):
                     raise ValueError(f"holes[{i}]: {axis} = {value} m is outside the travel")
-            self.xy.append(_xy_move(machine, position, hole, cycle.xy_tolerance))
+            xy = _xy_move(machine, position, hole, cycle.xy_tolerance)
+            if xy.move and cycle.overlap and cycle.compensate_xy:
+                # The drive is linear up to its encoder counts: one correction per displacement.
+                key = tuple(round((xy.target[j] - dict(zip(XY, position))[j]) * 1e9) for j in xy.joints)
+                if key not in corrections:
+                    corrections[key] = _xy_correction(machine, cycle.servo_period, xy)
+                xy = _XYMove(xy.target, xy.move, xy.leave, xy.arrive, xy.joints, corrections[key])
+            self.xy.append(xy)
             position = hole
 
     def _fast_exit(self) -> _Retract:
@@ -255,7 +290,96 @@ def _xy_move(machine: Machine, p0: tuple[float, float], p1: tuple[float, float],
     # Conservative on the sampling grid: leave one step early, arrive one step late.
     left = np.nonzero(np.linalg.norm(p - start, axis=1) > tol)[0]
     away = np.nonzero(np.linalg.norm(p - end, axis=1) > tol)[0]
-    return _XYMove(target, move, max(ts[left[0]] - FINE_STEP, 0.0), ts[away[-1]] + FINE_STEP)
+    return _XYMove(target, move, max(ts[left[0]] - FINE_STEP, 0.0), ts[away[-1]] + FINE_STEP, tuple(joints))
+
+
+def _xy_correction(machine: Machine, period: float, xy: _XYMove) -> np.ndarray:
+    """The drive-model correction (3, k, joints) of one S1 move, from rest, on the servo
+    grid: sample 0 (still zero) lies XY_COMMAND_LEAD periods before the move starts.
+
+    The reference is the ruckig move relative to its start, at rest XY_LEAD_PERIODS
+    periods before and COMPENSATION_TAIL s after; learn_correction leaves its first
+    XY_FIXED_PERIODS samples uncorrected (all but the last dropped here) and `settled` cuts the tail where
+    the correction stays below XY_SETTLED_COUNTS encoder counts.
+    """
+    drive = DriveModel(machine, period, xy.joints)
+    steps = math.ceil(xy.duration / period - 1e-9)
+    n = XY_LEAD_PERIODS + steps + math.ceil(COMPENSATION_TAIL / period) + 1
+    t = (np.arange(n) - XY_LEAD_PERIODS) * period
+    p, v, a = xy.move.sample_all(np.clip(t, 0.0, xy.duration))
+    p = p - p[0]
+    moving = (t >= 0.0) & (t < xy.duration)
+    v, a = v * moving[:, None], a * moving[:, None]
+    correction = learn_correction(drive, p, v, a, XY_FIXED_PERIODS)
+    tolerance = XY_SETTLED_COUNTS * float(np.min(drive.resolution))
+    return settled(correction[XY_FIXED_PERIODS - 1:], XY_COMMAND_LEAD + steps, period, tolerance)
+
+
+class _XYCommand:
+    """The compensated X/Y commands of one overlapped cycle, as one timeline piece per axis:
+    the ruckig moves (holding at each hole in between) plus every move's correction,
+    added where they overlap (a correction's tail may reach into the next S1)."""
+
+    def __init__(self, start: dict[str, float], period: float):
+        self.start = {j: start[j] for j in XY}
+        self.period = period
+        self.entries: list[tuple[float, _XYMove, float]] = []  # (move start, move, correction start)
+        self._cache: tuple[tuple, dict] | None = None
+
+    def add(self, t_s1: float, xy: _XYMove) -> None:
+        lead = XY_COMMAND_LEAD * self.period
+        self.entries.append((t_s1, xy, t_s1 - lead))
+
+    @property
+    def begin(self) -> float:
+        return min(c for _, _, c in self.entries)
+
+    @property
+    def end(self) -> float:
+        return max(max(t + xy.duration, c + (xy.correction.shape[1] - 1) * self.period)
+                   for t, xy, c in self.entries)
+
+    def sample(self, ts: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        key = (len(ts), float(ts[0]), float(ts[-1])) if len(ts) else (0, 0.0, 0.0)
+        if self._cache is not None and self._cache[0] == key:
+            return self._cache[1]
+        out = {j: [np.full_like(ts, self.start[j]), np.zeros_like(ts), np.zeros_like(ts)] for j in XY}
+        for t_s1, xy, c0 in self.entries:
+            if len(ts) == 0:
+                break
+            p_end = [xy.target[j] for j in xy.joints]
+            after = ts >= t_s1 + xy.duration
+            for dof, j in enumerate(xy.joints):
+                out[j][0][after] = p_end[dof]
+            inside = (ts >= t_s1) & ~after
+            if inside.any():
+                pva = xy.move.sample_all(ts[inside] - t_s1)
+                for dof, j in enumerate(xy.joints):
+                    for q in range(3):
+                        out[j][q][inside] = pva[q][:, dof]
+            k = xy.correction.shape[1]
+            span = (ts >= c0) & (ts <= c0 + (k - 1) * self.period)
+            if span.any():
+                grid = np.arange(k) * self.period
+                for dof, j in enumerate(xy.joints):
+                    for q in range(3):
+                        out[j][q][span] += np.interp(ts[span] - c0, grid, xy.correction[q, :, dof])
+        self._cache = (key, out)
+        return out
+
+    def write(self, builder: PlanBuilder) -> None:
+        """Add the commands to the builder: one piece per X/Y axis over the whole cycle."""
+        if not self.entries:
+            return
+        begin, end = self.begin, self.end
+        final = dict(self.start)
+        for _, xy, _ in self.entries:
+            final.update(xy.target)
+        for j in XY:
+            def sample(t: np.ndarray, j: str = j) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                return tuple(self.sample(t + begin)[j])  # type: ignore[return-value]
+
+            builder.timelines[j].add(Piece(begin, end - begin, sample), final[j])
 
 
 def _add_z(builder: PlanBuilder, start: float, move: RuckigMove, duration: float | None = None) -> float:
@@ -289,11 +413,23 @@ def _emit_overlapped(job: _Job, retracts: list[_Retract]) -> Emit:
              accel: np.ndarray, energy: bool) -> list[dict]:
         u = t0  # when Z last passed R going up (the cycle start for the first hole)
         infos = []
+        period = c.servo_period
+        command = _XYCommand(job.start, period) if c.compensate_xy else None
+        lead = XY_COMMAND_LEAD * period
         for i, xy in enumerate(job.xy):
             last = i == job.n - 1
             mode = last_mode if last else retracts[i].mode
             t_s1 = t0 if i == 0 else u + e_up[i]
-            xy_end = builder.rapid(xy.target, start=t_s1)
+            if command is None:
+                xy_end = builder.rapid(xy.target, start=t_s1)
+            else:
+                # On the servo grid, where the correction was learned; the first command
+                # starts no earlier than the cycle.
+                t_s1 = (math.ceil(t0 / period - 1e-9) * period + lead if i == 0
+                        else round(t_s1 / period) * period)
+                xy_end = t_s1 + xy.duration
+                if xy.move:
+                    command.add(t_s1, xy)
             builder.event(t_s1, "S1", hole=i, mode=mode)
             air_time = max(arc_min[i], t_s1 + xy.duration + e_down[i] - u)
             if i == 0:
@@ -326,6 +462,8 @@ def _emit_overlapped(job: _Job, retracts: list[_Retract]) -> Emit:
             if energy:
                 info["air_energy"] = _air_energy(air)
             infos.append(info)
+        if command is not None:
+            command.write(builder)
         return infos
 
     return emit
@@ -521,6 +659,6 @@ def lower_bound_time(machine: Machine, cycle: DrillCycle,
     acceleration back to R. X/Y may not move while the tip is below R, so no safe cycle
     is shorter."""
     first = start_xy if start_xy is not None else cycle.holes[0]
-    job = _Job(machine, cycle, {"x": first[0], "y": first[1], "z": cycle.r_z})
+    job = _Job(machine, replace(cycle, compensate_xy=False), {"x": first[0], "y": first[1], "z": cycle.r_z})
     below = job.feed_stroke.duration + job.fast.t_r
     return sum(xy.duration for xy in job.xy) + job.n * below

@@ -44,10 +44,12 @@ def test_roughing_starts_passes_on_the_stock_without_gouging(tmp_path):
     report = run_and_reanalyse("turn_stepped.yaml", tmp_path / "turn")
     turn = report["turn"]
     assert turn["passes"] >= 5
-    # Setpoints never enter profile + allowance; the feedback overshoots a shoulder face
-    # by a few um (the allowance is radial only, so passes end on the face itself).
+    # Setpoints never enter the profile offset by the radial and axial allowances; passes end
+    # W = 0.1 mm before shoulder faces, so the servo's overshoot of a few um in Z on feedback
+    # stays in the allowance and never reaches the final profile.
     assert turn["max_gouge_commanded_mm"] == pytest.approx(0.0, abs=1e-9)
-    assert turn["max_gouge_part_mm"] < 0.01
+    assert turn["max_gouge_part_mm"] == 0
+    assert turn["max_gouge_mm"] < 0.02
     assert turn["air_feed_mm"] < 0.1 * turn["naive_air_feed_mm"]
     assert turn["path_mm"] < turn["naive_path_mm"]
 

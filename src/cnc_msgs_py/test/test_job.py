@@ -661,3 +661,74 @@ def test_status_decode_refuses_other_documents(text):
 def test_cancel_codec():
     assert encode_cancel("drill-001") == "drill-001"
     assert decode_cancel("  drill-001\n") == "drill-001"
+
+
+# --- turning: axial allowance and arcs in the outlines ------------------------------------
+
+def test_turn_axial_allowance_defaults_to_a_tenth():
+    assert parse_job(doc("turn")).turn.finish_allowance_z == pytest.approx(0.0001, abs=1e-15)
+    d = doc("turn")
+    d["turn"]["finish_allowance_z"] = 0.05
+    assert parse_job(d).turn.finish_allowance_z == pytest.approx(0.00005, abs=1e-15)
+    d["turn"]["finish_allowance_z"] = -0.1
+    rejected(d, "turn.finish_allowance_z", "must be >= 0")
+
+
+def _arc_doc(entry) -> dict:
+    d = doc("turn")
+    d["turn"]["profile"] = [[0, 8], entry, [-15, 12], [-40, 12]]
+    return d
+
+
+@pytest.mark.parametrize("entry", [
+    {"arc_to": [-4, 12], "radius": 4},
+    {"arc_to": [-4, 12], "center": [-4, 8]},
+    {"arc_to": [-4, 12], "center": [-4, 8], "radius": 4},
+])
+def test_turn_arc_by_radius_or_center_expands_into_chords(entry):
+    profile = parse_job(_arc_doc(entry)).turn.profile
+    arc = profile[: len(profile) - 2]
+    assert arc[0] == [0.0, 0.008] and arc[-1] == [pytest.approx(-0.004), pytest.approx(0.012)]
+    assert len(arc) > 10  # chords within 1 um of a 4 mm arc
+    for z, x in arc:
+        assert math.hypot(z + 0.004, x - 0.008) == pytest.approx(0.004, abs=1e-12)  # on the circle
+    for (z0, x0), (z1, x1) in zip(arc, arc[1:]):
+        assert z1 <= z0  # still right to left
+        mid = math.hypot((z0 + z1) / 2 + 0.004, (x0 + x1) / 2 - 0.008)
+        assert 0.004 - mid <= 1e-6 + 1e-15  # chord error
+    assert all(x >= 0.008 - 1e-15 for _, x in arc)
+
+
+def test_turn_arc_with_negative_radius_is_concave():
+    concave = parse_job(_arc_doc({"arc_to": [-4, 12], "radius": -4})).turn.profile
+    mid = concave[len(concave) // 4]
+    assert math.hypot(mid[0] - 0.0, mid[1] - 0.012) == pytest.approx(0.004, abs=1e-12)  # center (0, 12)
+
+
+def test_turn_stock_may_hold_arcs_too():
+    d = doc("turn")
+    d["turn"]["stock"] = [[0, 18], {"arc_to": [-2, 20], "radius": 2}, [-40, 20]]
+    stock = parse_job(d).turn.stock
+    assert len(stock) > 4 and stock[-1] == [-0.04, 0.02]
+
+
+@pytest.mark.parametrize("entry, field, words", [
+    ({"arc_to": [-4, 12], "radius": 2}, "turn.profile[1].radius", ("shorter than half the chord", "2.828 mm")),
+    ({"arc_to": [-4, 12], "center": [-4, 7]}, "turn.profile[1].center", ("not equally far",)),
+    ({"arc_to": [-4, 12], "center": [-4, 8], "radius": 5}, "turn.profile[1].radius", ("does not match",)),
+    ({"arc_to": [-4, 12]}, "turn.profile[1]", ("radius or a center",)),
+    ({"arc_to": [0, 8], "radius": 4}, "turn.profile[1].arc_to", ("previous point",)),
+    ({"arc_to": [-4, 12], "radius": "4"}, "turn.profile[1].radius", ("expected a number",)),
+    ({"to": [-4, 12], "radius": 4}, "turn.profile[1].to", ("unknown key",)),
+    ({"arc_to": [-4, 8], "center": [-2, 8]}, "turn.profile[1].center", ("half circle",)),
+    ({"arc_to": [-1, 10 + math.sqrt(3)], "center": [0, 10]}, "turn.profile[1]", ("turns back in z",)),
+    ("corner", "turn.profile[1]", ("[z, radius] point or an {arc_to",)),
+])
+def test_bad_turn_arcs_are_refused_at_their_path(entry, field, words):
+    rejected(_arc_doc(entry), field, *words)
+
+
+def test_turn_outline_cannot_start_with_an_arc():
+    d = doc("turn")
+    d["turn"]["profile"] = [{"arc_to": [-4, 12], "radius": 4}, [-40, 12]]
+    rejected(d, "turn.profile[0]", "needs a point before it")

@@ -206,7 +206,7 @@ def plan_turn(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin:
     try:
         check_outlines(stock, profile)
         rough = plan_roughing(stock, profile, t.depth_of_cut, t.clearance, tuple(t.origin),
-                              t.finish_allowance, t.finishing_pass)
+                              t.finish_allowance, t.finishing_pass, t.finish_allowance_z)
     except TurningError as err:
         field, _, reason = str(err).partition(": ")
         raise JobError(field, reason) from err

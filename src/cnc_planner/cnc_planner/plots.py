@@ -27,7 +27,7 @@ from cnc_servo_bridge.recording import Run  # noqa: E402
 from .jobs import drill_cycle  # noqa: E402
 from .kinematics import Kinematics  # noqa: E402
 from .report import job_window, last_job  # noqa: E402
-from .turning import plan_roughing  # noqa: E402
+from .turning import offset_outline, plan_roughing  # noqa: E402
 
 DPI = 110
 MM = to_mm(1.0)  # m -> mm, as a scale for plot axes
@@ -275,7 +275,7 @@ def _turn_passes(run: Run, job: SimpleNamespace, machine: Machine, window: np.nd
     tj = job.turn
     stock, profile = [tuple(p) for p in tj.stock], [tuple(p) for p in tj.profile]
     plan = plan_roughing(stock, profile, tj.depth_of_cut, tj.clearance, tuple(tj.origin),
-                         tj.finish_allowance, tj.finishing_pass)
+                         tj.finish_allowance, tj.finishing_pass, tj.finish_allowance_z)
     kin = Kinematics(machine, job.setup, job.tool)
     fb = run.feedback[window][_stride(int(window.sum()))]
     tips, _ = kin.fk_many({"x": fb[:, run.column("x")], "z": fb[:, run.column("z")]})
@@ -296,9 +296,9 @@ def _turn_passes(run: Run, job: SimpleNamespace, machine: Machine, window: np.nd
     fig, ax = plt.subplots(figsize=(12, float(np.clip(8.5 * r_span / z_span + 1.4, 3.8, 9.0))))
     ax.fill(*area(stock).T, color="tan", alpha=0.45, lw=1, ec="saddlebrown", label="stock before roughing")
     ax.fill(*area(profile).T, color="0.7", lw=1, ec="0.3", label="final profile")
-    allowance = np.array(profile) * MM + [0.0, tj.finish_allowance * MM]
+    allowance = np.array(offset_outline(profile, tj.finish_allowance, tj.finish_allowance_z)) * MM
     ax.plot(allowance[:, 0], allowance[:, 1], color="0.2", ls="--", lw=0.9,
-            label=f"profile + allowance {tj.finish_allowance * MM:.2f} mm")
+            label=f"profile + allowance {tj.finish_allowance * MM:.2f} mm (X), {tj.finish_allowance_z * MM:.2f} mm (Z)")
     ax.plot(z, np.where(~feed_of_sample, r, np.nan), color="tab:blue", lw=0.9, ls="--", label="rapid (air)")
     ax.plot(z, np.where(feed_of_sample, r, np.nan), color=FEEDBACK, lw=1.8, label="cutting feed")
     ax.plot(*(np.array(tj.origin) * MM), "ko", ms=5, label="start point")

@@ -171,7 +171,8 @@ def job_totals(doc: dict) -> dict:
 
             t = job.turn
             rough = plan_roughing([tuple(p) for p in t.stock], [tuple(p) for p in t.profile], t.depth_of_cut,
-                                  t.clearance, tuple(t.origin), t.finish_allowance, t.finishing_pass)
+                                  t.clearance, tuple(t.origin), t.finish_allowance, t.finishing_pass,
+                                  t.finish_allowance_z)
             return {"pass": sum(1 for m in rough.moves if m.cutting)}
     except Exception:  # noqa: BLE001 - labels only; the planner reports what is wrong
         return {}

@@ -132,7 +132,7 @@ def turn_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.nd
     t = job.turn
     args = dict(stock=[tuple(p) for p in t.stock], profile=[tuple(p) for p in t.profile],
                 depth_of_cut=t.depth_of_cut, clearance=t.clearance, origin=tuple(t.origin),
-                finish_allowance=t.finish_allowance)
+                finish_allowance=t.finish_allowance, finish_allowance_z=t.finish_allowance_z)
     ours = plan_roughing(**args, finishing_pass=t.finishing_pass)
     naive = plan_naive(**args, finishing_pass=t.finishing_pass)
     kin = Kinematics(machine, job.setup, job.tool)
@@ -147,10 +147,12 @@ def turn_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.nd
         "naive_path_mm": to_mm(naive.path_length),
         "naive_air_feed_mm": to_mm(naive.air_feed_length),
         "path_feedback_mm": to_mm(float(np.sum(np.linalg.norm(np.diff(tip_zx, axis=0), axis=1)))),
-        # How far the tip went into the finishing allowance, and into the part itself.
-        "max_gouge_mm": to_mm(max_gouge(tip_zx, args["profile"], t.finish_allowance)),
+        # How far the tip went into the finishing allowances (radial and axial) on feedback, into
+        # the final profile itself on feedback (must be 0), and into the allowances in the setpoints.
+        "max_gouge_mm": to_mm(max_gouge(tip_zx, args["profile"], t.finish_allowance, t.finish_allowance_z)),
         "max_gouge_part_mm": to_mm(max_gouge(tip_zx, args["profile"], 0.0)),
-        "max_gouge_commanded_mm": to_mm(max_gouge(commanded, args["profile"], t.finish_allowance)),
+        "max_gouge_commanded_mm": to_mm(max_gouge(commanded, args["profile"], t.finish_allowance,
+                                                  t.finish_allowance_z)),
         "cycle_time_s": analysis.cycle_time(run, ("x", "z")),
     }
 

@@ -19,8 +19,15 @@ against a falling section the tool cannot come in along z: it comes down onto th
 at the section (a plunge at feed) and then cuts along the pass line. The crossings are
 found per linear piece of the profile, which gives the same stretches as per section.
 
-The finishing allowance is radial (x), as U in a G71 cycle: the tool tip never goes below
-profile + allowance, and shoulder faces are left without allowance. Tool nose radius 0.
+The finishing allowance has a radial part u (x, as U in a G71 cycle) and an axial part w (z,
+as W): roughing works to the profile offset by both, the region under the profile dilated by
+the rectangle [-w, w] x [-u, u] (``offset_outline``), so the tool stays u off diameters and w
+off shoulder faces facing either way, and neither the setpoints nor a servo overshoot of a few
+um reach the profile. Rapids stop at least the clearance away from the stock left (and so from
+the offset profile under it): a pass starts where its line is the clearance away from the stock,
+a pass that ends against a face retracts at 45 degrees by the clearance, and a pass that has to
+start against a groove's wall comes in on a short ramp from the clearance off the wall.
+Tool nose radius 0.
 """
 from __future__ import annotations
 
@@ -29,6 +36,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cnc_msgs_py.outline import ArcError
+from cnc_msgs_py.outline import arc_points as _arc_points
 from cnc_msgs_py.units import to_mm
 
 Point = tuple[float, float]  # (z, x): x is a radius, m
@@ -301,6 +310,37 @@ def _point_segment_distance(p: np.ndarray, a: Point, b: Point) -> np.ndarray:
     return np.linalg.norm(p - (a_ + t[:, None] * ab), axis=1)
 
 
+def _clear_of(segments: list[tuple[Point, Point]], r: float, alpha: float) -> list[tuple[float, float]]:
+    """The open z intervals of the line x = r closer than alpha to any of the segments (merged, ascending)."""
+    out = []
+    for (az, ax), (bz, bx) in segments:
+        if min(ax, bx) - alpha >= r or max(ax, bx) + alpha <= r:
+            continue
+        lo, hi = math.inf, -math.inf
+        for cz, cx in ((az, ax), (bz, bx)):  # the discs at the ends
+            h = alpha * alpha - (r - cx) ** 2
+            if h > 0.0:
+                lo, hi = min(lo, cz - math.sqrt(h)), max(hi, cz + math.sqrt(h))
+        length = math.hypot(bz - az, bx - ax)
+        if length > EPS:  # the band along the segment: 0 <= (p-a).u <= L and |(p-a).n| < alpha
+            uz, ux = (bz - az) / length, (bx - ax) / length
+            b_lo, b_hi = -math.inf, math.inf
+            for c, k, low, high in (((r - ax) * ux - az * uz, uz, 0.0, length),
+                                    ((r - ax) * uz + az * ux, -ux, -alpha, alpha)):
+                # low <= c + k z <= high
+                if abs(k) < 1e-15:
+                    if not low <= c <= high:
+                        b_lo, b_hi = math.inf, -math.inf
+                    continue
+                z1, z2 = (low - c) / k, (high - c) / k
+                b_lo, b_hi = max(b_lo, min(z1, z2)), min(b_hi, max(z1, z2))
+            if b_lo < b_hi:
+                lo, hi = min(lo, b_lo), max(hi, b_hi)
+        if lo < hi:
+            out.append((lo, hi))
+    return _merge(out)
+
+
 def _check_outline(field: str, points: list[Point]) -> None:
     if len(points) < 2:
         raise TurningError(f"{field}: needs at least 2 points (got {len(points)})")
@@ -373,8 +413,8 @@ class _Cycle:
     """Builds the moves of one roughing cycle while keeping track of the stock left."""
 
     def __init__(self, stock: list[Point], profile: list[Point], depth_of_cut: float, clearance: float,
-                 origin: Point, finish_allowance: float, naive: bool):
-        self.offset = [(z, r + finish_allowance) for z, r in profile]
+                 origin: Point, finish_allowance: float, finish_allowance_z: float, naive: bool):
+        self.offset = offset_outline(profile, finish_allowance, finish_allowance_z)
         self.part = HeightField.from_outline(self.offset)  # the tool tip stays on or above it
         self.stock = StockModel(stock)
         self.r_max = max(r for _, r in stock)
@@ -422,13 +462,36 @@ class _Cycle:
                     need = max(need, (r - xb * t) / (1.0 - t))
         return need
 
+    def clear_start(self, r: float, z: float) -> float:
+        """The smallest z' >= z on the line x = r at least the clearance away from the stock left."""
+        blocked = _clear_of(self.stock.field.boundary(), r, self.alpha - 0.5 * TOUCH)
+        blocked = _merge(blocked + self.stock.field.above(r, 0.0))  # inside the stock
+        for lo, hi in blocked:
+            if lo < z < hi:
+                z = hi
+        return z
+
+    def retract(self) -> None:
+        """After a feed: 45 degrees up and right by the clearance, off the face and the surface just cut."""
+        if not self.moves or self.moves[-1].kind != "feed":
+            return
+        a = self.at
+        b = (a[0] + self.alpha, a[1] + self.alpha)
+        if (self.stock.field.length_inside(a, b) > EPS or self.part.length_inside(a, b, EPS) > EPS
+                or self.stock.distance(b) < self.alpha - TOUCH):
+            return  # no room (a stretch narrower than the clearance): lift straight up
+        self.move("rapid", b, False)
+
     def connect(self, target: Point) -> None:
-        """Shortest Z-then-X move to target: X to the lowest safe height, Z, then X."""
+        """Shortest Z-then-X move to target: retract, X to the lowest safe height, Z, then X."""
+        self.retract()
         (za, xa), (zb, xb) = self.at, target
         lo, hi = min(za, zb), max(za, zb)
         h = max(xa, xb)
         if hi > lo:
             h = max(h, self.stock.field.max_between(lo, hi) + self.alpha, self.part.max_between(lo, hi))
+        if h - xa <= TOUCH:
+            h = xa  # no lift for float noise: the Z leg stays one-axis
         for p in ((za, h), (zb, h), target):
             self.move("rapid", p, False)
 
@@ -441,17 +504,23 @@ class _Cycle:
             return  # the pass lies in air
         self.passes += 1
         first = runs[0][1]
-        z_start = min(hi, (self.stock_right if self.naive else first) + self.alpha)
-        if z_start - first > EPS:
+        if self.naive:
+            z_start = max(self.stock_right, first) + self.alpha
+        else:
+            z_start = self.clear_start(r, first + self.alpha)
+        if z_start <= hi - self.alpha:
             self.arrive((z_start, r))
-        else:  # material stands against a falling section: come down onto it
-            top = float(self.stock.field.limits(hi)[0][0])
-            self.arrive((hi, top + self.alpha))
+        else:  # material stands against a falling section (a groove's wall): ramp down onto it
+            z_ramp = max(lo, hi - self.alpha)
+            top = max(self.stock.field.max_between(z_ramp - self.alpha, hi), r)
+            self.arrive((z_ramp, top + self.alpha))
             self.move("feed", (hi, r), True)
         for (a, _), (_, b_next) in zip(runs, runs[1:]):
-            if not self.naive and a - b_next > 2.0 * self.alpha:  # rapid over a dip in the stock
-                self.move("feed", (a, r), True)
-                self.move("rapid", (b_next + self.alpha, r), False)
+            if not self.naive:  # rapid over a dip in the stock, to the clearance before the next bump
+                z_next = self.clear_start(r, b_next + self.alpha)
+                if a - z_next > self.alpha:
+                    self.move("feed", (a, r), True)
+                    self.move("rapid", (z_next, r), False)
         self.move("feed", (runs[-1][0], r), True)
 
     def arrive(self, start: Point) -> None:
@@ -490,7 +559,7 @@ class _Cycle:
             path.pop()
         z0, x0 = path[0]
         ahead = [b for _, b in self.stock.field.above(x0, TOUCH) if b > z0]  # stock left in front of the face
-        self.arrive((max(ahead, default=z0) + self.alpha, x0))
+        self.arrive((self.clear_start(x0, max(ahead, default=z0) + self.alpha), x0))
         self.passes += 1
         for p in path:
             self.move("feed", p, True)
@@ -499,6 +568,7 @@ class _Cycle:
         """Back to the origin in a straight line, lifting first only if that line would hit something."""
         if not self.moves:
             return
+        self.retract()
         need = self.straight_lift(self.at, self.origin)
         if need > self.at[1] + TOUCH:
             self.move("rapid", (self.at[0], need + self.alpha), False)
@@ -506,13 +576,15 @@ class _Cycle:
 
 
 def _plan(stock: list[Point], profile: list[Point], depth_of_cut: float, clearance: float, origin: Point,
-          finish_allowance: float, finishing_pass: bool, naive: bool) -> RoughingPlan:
+          finish_allowance: float, finishing_pass: bool, finish_allowance_z: float, naive: bool) -> RoughingPlan:
     check_outlines(stock, profile)
     _check_parameters(stock, profile, depth_of_cut, clearance, origin, finish_allowance)
+    if not (math.isfinite(finish_allowance_z) and finish_allowance_z >= 0.0):
+        raise TurningError(f"turn.finish_allowance_z: must not be negative (got {_fmt(finish_allowance_z)} mm)")
     stock = [(float(z), float(r)) for z, r in stock]
     profile = [(float(z), float(r)) for z, r in profile]
     origin = (float(origin[0]), float(origin[1]))
-    cycle = _Cycle(stock, profile, depth_of_cut, clearance, origin, finish_allowance, naive)
+    cycle = _Cycle(stock, profile, depth_of_cut, clearance, origin, finish_allowance, finish_allowance_z, naive)
     cycle.rough()
     if finishing_pass:
         cycle.contour()
@@ -521,20 +593,25 @@ def _plan(stock: list[Point], profile: list[Point], depth_of_cut: float, clearan
 
 
 def plan_roughing(stock: list[Point], profile: list[Point], depth_of_cut: float, clearance: float,
-                  origin: Point, finish_allowance: float = 0.0, finishing_pass: bool = False) -> RoughingPlan:
+                  origin: Point, finish_allowance: float = 0.0, finishing_pass: bool = False,
+                  finish_allowance_z: float = 0.0) -> RoughingPlan:
     """The roughing cycle whose passes start at the stock left, not at the virtual cylinder.
 
     stock and profile run right to left as (z, radius); depth_of_cut is radial; clearance is
     the air in front of each pass start; origin is Q0. With finishing_pass, one more pass
-    follows profile + allowance so that only the allowance is left.
+    follows the offset profile so that only the allowances are left. finish_allowance is radial
+    (U), finish_allowance_z axial (W): see offset_outline.
     """
-    return _plan(stock, profile, depth_of_cut, clearance, origin, finish_allowance, finishing_pass, False)
+    return _plan(stock, profile, depth_of_cut, clearance, origin, finish_allowance, finishing_pass,
+                 finish_allowance_z, False)
 
 
 def plan_naive(stock: list[Point], profile: list[Point], depth_of_cut: float, clearance: float,
-               origin: Point, finish_allowance: float = 0.0, finishing_pass: bool = False) -> RoughingPlan:
+               origin: Point, finish_allowance: float = 0.0, finishing_pass: bool = False,
+               finish_allowance_z: float = 0.0) -> RoughingPlan:
     """The same passes, each started at the virtual cylinder's right end: the baseline to beat."""
-    return _plan(stock, profile, depth_of_cut, clearance, origin, finish_allowance, finishing_pass, True)
+    return _plan(stock, profile, depth_of_cut, clearance, origin, finish_allowance, finishing_pass,
+                 finish_allowance_z, True)
 
 
 def arc_points(start: Point, end: Point, center: Point | None = None, radius: float | None = None,
@@ -545,47 +622,96 @@ def arc_points(start: Point, end: Point, center: Point | None = None, radius: fl
     the Z-X plane (z right, x up): run right to left, as outlines are, that arc bulges away from
     the axis (convex, a rounded corner); negative is clockwise (concave, a fillet or groove).
     With the radius alone the arc is the shorter one; with the center alone it is the shorter
-    one too, and a half circle needs the radius's sign to pick its side.
+    one too, and a half circle needs the radius's sign to pick its side. Job files expand their
+    arcs with the same function when they are parsed (cnc_msgs_py.job).
     """
-    s, e = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
-    chord = float(np.linalg.norm(e - s))
-    if chord <= EPS:
-        raise TurningError("arc: start and end are the same point")
-    if center is None:
-        if radius is None or radius == 0.0:
-            raise TurningError("arc: give a center or a non-zero radius")
-        half = chord / 2.0
-        if abs(radius) < half - EPS:
-            raise TurningError(f"arc: radius {abs(radius):g} is shorter than half the chord ({half:g})")
-        left = np.array([-(e - s)[1], (e - s)[0]]) / chord  # the chord direction turned counter-clockwise
-        c = (s + e) / 2.0 + math.copysign(math.sqrt(max(radius * radius - half * half, 0.0)), radius) * left
-    else:
-        c = np.asarray(center, dtype=float)
-    rho = float(np.linalg.norm(s - c))
-    if abs(float(np.linalg.norm(e - c)) - rho) > 1.0e-9 * max(rho, 1.0):
-        raise TurningError("arc: start and end are not equally far from the center")
-    if radius is not None and abs(abs(radius) - rho) > 1.0e-9 * max(rho, 1.0):
-        raise TurningError(f"arc: radius {abs(radius):g} does not match the center ({rho:g} away)")
-    a0 = math.atan2(s[1] - c[1], s[0] - c[0])
-    ccw = (math.atan2(e[1] - c[1], e[0] - c[0]) - a0) % (2.0 * math.pi)
-    if radius is not None:
-        sweep = ccw if radius > 0.0 else ccw - 2.0 * math.pi
-    else:
-        if abs(ccw - math.pi) < 1.0e-9:
-            raise TurningError("arc: a half circle needs a signed radius to pick its side")
-        sweep = ccw if ccw < math.pi else ccw - 2.0 * math.pi
-    step = 2.0 * math.acos(max(1.0 - max_chord_error / rho, -1.0))
-    n = max(1, math.ceil(abs(sweep) / step))
-    angles = a0 + sweep * np.linspace(0.0, 1.0, n + 1)
-    pts = [(float(c[0] + rho * math.cos(t)), float(c[1] + rho * math.sin(t))) for t in angles]
-    pts[0], pts[-1] = (float(s[0]), float(s[1])), (float(e[0]), float(e[1]))
-    return pts
+    try:
+        return _arc_points(start, end, center, radius, max_chord_error)
+    except ArcError as err:
+        raise TurningError(str(err)) from err
 
 
-def max_gouge(points_zx: np.ndarray, profile: list[Point], finish_allowance: float) -> float:
-    """How far any tool tip sample lies inside profile + allowance (m, 0 if none does)."""
+def _envelope(pieces: list[tuple[float, float, float, float]], lo: float, hi: float) -> list[tuple[float, ...]]:
+    """Upper envelope over [lo, hi] of linear pieces (z0, r0, z1, r1), as contiguous pieces, ascending."""
+    p = np.array(pieces, dtype=float)
+    za, ra, zb, rb = p.T
+    cuts = np.unique(np.clip(np.concatenate([za, zb, [lo, hi]]), lo, hi))
+    out: list[list[float]] = []
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        if b - a <= EPS * 1e-3:
+            continue
+        m = 0.5 * (a + b)
+        act = p[(za < m) & (zb > m)]
+        if len(act) == 0:
+            continue
+        k = (act[:, 3] - act[:, 1]) / (act[:, 2] - act[:, 0])
+        def at(z: float) -> float:
+            return float(np.max(act[:, 1] + k * (z - act[:, 0])))
+        zs = {a, b}
+        for i in range(len(act)):
+            for j in range(i + 1, len(act)):
+                dk = k[i] - k[j]
+                if dk != 0.0:
+                    # r_i(z) = r_j(z)
+                    zc = (act[j, 1] - k[j] * act[j, 0] - act[i, 1] + k[i] * act[i, 0]) / dk
+                    if a < zc < b:
+                        zs.add(float(zc))
+        zs_sorted = sorted(zs)
+        for z0, z1 in zip(zs_sorted[:-1], zs_sorted[1:]):
+            v0, v1 = at(z0), at(z1)
+            if out and abs(out[-1][2] - z0) < 1e-15 and abs(out[-1][3] - v0) < 1e-15:
+                # collinear with the previous piece: extend it
+                pz0, pv0, pz1, pv1 = out[-1]
+                if abs((pv1 - pv0) * (z1 - pz0) - (v1 - pv0) * (pz1 - pz0)) <= 1e-18:
+                    out[-1] = [pz0, pv0, z1, v1]
+                    continue
+            if out:
+                z0 = out[-1][2]  # snap to the previous end: no gaps, jumps only
+            out.append([z0, v0, z1, v1])
+    return [tuple(o) for o in out]
+
+
+def offset_outline(profile: list[Point], radial: float, axial: float) -> list[Point]:
+    """The profile offset by the finishing allowances, right to left: the outline roughing works to.
+
+    The region under the profile dilated by the rectangle [-axial, axial] x [-radial, radial]
+    (a Minkowski sum): diameters move up by radial, shoulder faces move away from the part by
+    axial whichever way they face, slopes by the rectangle's corner. The part's right end face
+    moves right by axial too; on the left the outline ends at the profile's end (the zone ends
+    there, against stock that stays).
+    """
+    profile = [(float(z), float(r)) for z, r in profile]
+    if axial <= 0.0:
+        return [(z, r + radial) for z, r in profile]
+    field = HeightField.from_outline(profile)
+    w = axial
+    swept = []
+    for za, ra, zb, rb in zip(field.za, field.ra, field.zb, field.rb):
+        if ra < rb:
+            swept += [(za - w, ra, zb - w, rb), (zb - w, rb, zb + w, rb)]
+        elif ra > rb:
+            swept += [(za - w, ra, za + w, ra), (za + w, ra, zb + w, rb)]
+        else:
+            swept.append((za - w, ra, zb + w, rb))
+    pieces = _envelope(swept, profile[-1][0], profile[0][0] + w)
+    out: list[Point] = []
+    for z0, v0, z1, v1 in reversed(pieces):  # right to left
+        for q in ((z1, v1 + radial), (z0, v0 + radial)):
+            if not out or q != out[-1]:
+                out.append(q)
+    # the profile's end faces (drops at its ends) stay where they are
+    if profile[0][0] == profile[1][0]:
+        out.insert(0, (profile[0][0] + w, profile[0][1] + radial))
+    if profile[-1][0] == profile[-2][0]:
+        out.append((profile[-1][0], profile[-1][1] + radial))
+    return out
+
+
+def max_gouge(points_zx: np.ndarray, profile: list[Point], finish_allowance: float,
+              finish_allowance_z: float = 0.0) -> float:
+    """How far any tool tip sample lies inside the profile offset by the allowances (m, 0 if none does)."""
     pts = np.atleast_2d(np.asarray(points_zx, dtype=float))
-    offset = [(z, r + finish_allowance) for z, r in profile]
+    offset = offset_outline(profile, finish_allowance, finish_allowance_z)
     inside = pts[:, 1] < HeightField.from_outline(offset).at(pts[:, 0]) - EPS
     if not inside.any():
         return 0.0
@@ -597,15 +723,18 @@ def max_gouge(points_zx: np.ndarray, profile: list[Point], finish_allowance: flo
     return float(depth.max())
 
 
-def material_left(stock: list[Point], profile: list[Point], moves: list[TurnMove], origin: Point) -> float:
+def material_left(stock: list[Point], profile: list[Point], moves: list[TurnMove], origin: Point,
+                  finish_allowance: float = 0.0, finish_allowance_z: float = 0.0) -> float:
     """Thickest material left above the profile after the moves (radial, m), over the profile's length.
 
+    With allowances, above the profile offset by them (offset_outline): what the allowances do not
+    explain, which a shoulder face's axial allowance would otherwise show as the face's height.
     Replays the moves against the stock, so it judges what the path cuts, not what it intends.
     """
     model = StockModel(stock)
     for a, m in _with_starts(origin, moves):
         model.cut(a, m.end)
-    part = HeightField.from_outline(list(profile))
+    part = HeightField.from_outline(offset_outline(profile, finish_allowance, finish_allowance_z))
     lo, hi = profile[-1][0], profile[0][0]
     zs = np.union1d(part.breaks(lo, hi), model.field.breaks(lo, hi))
     worst = 0.0

@@ -10,7 +10,8 @@ from __future__ import annotations
 
 from cnc_msgs_py.units import mm
 
-_CUT = {"depth_of_cut": 1.5, "clearance": 0.5, "feed": 0.15, "origin": [5.0, 25.0], "finish_allowance": 0.2}
+_CUT = {"depth_of_cut": 1.5, "clearance": 0.5, "feed": 0.15, "origin": [5.0, 25.0], "finish_allowance": 0.2,
+        "finish_allowance_z": 0.1}
 
 EXAMPLES: dict[str, dict] = {
     "cylinder": {
@@ -55,4 +56,5 @@ def roughing_args(name: str) -> dict:
         "clearance": mm(ex["clearance"]),
         "origin": (mm(ex["origin"][0]), mm(ex["origin"][1])),
         "finish_allowance": mm(ex["finish_allowance"]),
+        "finish_allowance_z": mm(ex["finish_allowance_z"]),
     }

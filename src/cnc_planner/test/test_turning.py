@@ -16,6 +16,7 @@ from cnc_planner.turning import (
     check_outlines,
     material_left,
     max_gouge,
+    offset_outline,
     plan_naive,
     plan_roughing,
 )
@@ -57,21 +58,23 @@ def test_cylinder_passes_by_hand():
     for (start, m), r in zip(feeds, radii):
         assert start == pytest.approx((mm(0.5), mm(r)), abs=1e-12)  # face + clearance
         # above the 14.2 mm offset shoulder the pass runs to the profile's end, below it to the shoulder
-        assert (m.z, m.x) == pytest.approx((mm(-40.0) if r > 14.2 else mm(-10.0), mm(r)), abs=1e-12)
+        # face plus the 0.1 mm axial allowance
+        assert (m.z, m.x) == pytest.approx((mm(-40.0) if r > 14.2 else mm(-9.9), mm(r)), abs=1e-12)
 
 
 def test_cylinder_path_length_by_hand():
     _, plan, _ = plans("cylinder")
     approach = math.hypot(5.0 - 0.5, 25.0 - 18.5)
-    cuts = 3 * 40.5 + 5 * 10.5
-    # retract 0.5, back in Z, down to the next pass (2.0 = d + clearance; 1.8 to the 8.2 floor)
-    links = 3 * (0.5 + 40.5 + 2.0) + 3 * (0.5 + 10.5 + 2.0) + (0.5 + 10.5 + 1.8)
-    home = math.hypot(5.0 + 10.0, 25.0 - 8.2)
+    cuts = 3 * 40.5 + 5 * 10.4
+    # retract 0.5 at 45 degrees, back in Z, down to the next pass (2.0 = d + clearance; 1.8 to the 8.2 floor)
+    retract = math.sqrt(2.0) * 0.5
+    links = 3 * (retract + 40.0 + 2.0) + 3 * (retract + 9.9 + 2.0) + (retract + 9.9 + 1.8)
+    home = retract + math.hypot(5.0 + 9.4, 25.0 - 8.7)
     assert plan.path_length == pytest.approx(mm(approach + cuts + links + home), abs=1e-12)
     assert plan.feed_length == pytest.approx(mm(cuts), abs=1e-12)
     assert plan.air_feed_length == pytest.approx(mm(8 * 0.5), abs=1e-12)  # the clearance before each pass
     total = round(approach + cuts + links + home, 3)
-    assert plan.to_dict() == {"passes": 8, "air_feed_mm": 4.0, "path_mm": total, "feed_mm": 174.0}
+    assert plan.to_dict() == {"passes": 8, "air_feed_mm": 4.0, "path_mm": total, "feed_mm": round(cuts, 3)}
 
 
 def test_cylinder_same_as_naive():
@@ -87,19 +90,29 @@ def test_cylinder_same_as_naive():
 def test_no_gouge(name, finishing):
     args, plan, naive = plans(name, finishing_pass=finishing)
     for p in (plan, naive):
-        assert max_gouge(p.points(SAMPLE_STEP), args["profile"], args["finish_allowance"]) <= GEOM_TOL
+        assert max_gouge(p.points(SAMPLE_STEP), args["profile"], args["finish_allowance"],
+                         args["finish_allowance_z"]) <= GEOM_TOL
 
 
 @pytest.mark.parametrize("name", NAMES)
 def test_material_left_within_depth_of_cut(name):
     args, plan, _ = plans(name)
     left = material_left(args["stock"], args["profile"], plan.moves, args["origin"])
-    assert left <= args["depth_of_cut"] + args["finish_allowance"] + GEOM_TOL
+    assert left <= args["depth_of_cut"] + args["finish_allowance"] + GEOM_TOL or args["finish_allowance_z"] > 0.0
+    # above the profile offset by both allowances, radially
+    left = material_left(args["stock"], args["profile"], plan.moves, args["origin"], args["finish_allowance"],
+                         args["finish_allowance_z"])
+    assert left <= args["depth_of_cut"] + GEOM_TOL
 
 
 @pytest.mark.parametrize("name", NAMES)
 def test_finishing_pass_leaves_the_allowance(name):
     args, plan, _ = plans(name, finishing_pass=True)
+    left = material_left(args["stock"], args["profile"], plan.moves, args["origin"], args["finish_allowance"],
+                         args["finish_allowance_z"])
+    assert left == pytest.approx(0.0, abs=GEOM_TOL)
+    without_axial = {**args, "finish_allowance_z": 0.0}
+    plan = plan_roughing(**without_axial, finishing_pass=True)
     left = material_left(args["stock"], args["profile"], plan.moves, args["origin"])
     assert left == pytest.approx(args["finish_allowance"], abs=GEOM_TOL)
 
@@ -133,12 +146,21 @@ def test_origin_moves_are_straight_and_links_are_z_then_x(name):
     assert first[0] == args["origin"] and first[1].kind == "rapid" and segs[1][1].kind == "feed"
     assert last[1].end == args["origin"] and last[1].kind == "rapid"
     last_feed = max(i for i, (_, m) in enumerate(segs) if m.kind == "feed")
-    # after the last pass: straight home, or first a lift in X where the straight line would hit a wall
-    assert len(segs) - last_feed - 1 in (1, 2)
-    if len(segs) - last_feed - 1 == 2:
+    alpha = args["clearance"]
+
+    def is_retract(i: int) -> bool:  # 45 degrees up and right by the clearance, right after a feed
+        a, m = segs[i]
+        return (segs[i - 1][1].kind == "feed" and m.kind == "rapid"
+                and (m.z - a[0], m.x - a[1]) == pytest.approx((alpha, alpha), abs=GEOM_TOL))
+
+    # after the last pass: the retract, then straight home, or first a lift in X where the straight
+    # line would hit a wall
+    assert is_retract(last_feed + 1)
+    assert len(segs) - last_feed - 2 in (1, 2)
+    if len(segs) - last_feed - 2 == 2:
         assert segs[-2][0][0] == segs[-2][1].z
-    for a, m in segs[1:-1]:
-        if m.kind == "rapid":
+    for i, (a, m) in enumerate(segs[1:-1], start=1):
+        if m.kind == "rapid" and not is_retract(i):
             assert a[0] == m.z or a[1] == m.x  # links run along one axis at a time
 
 
@@ -150,14 +172,46 @@ def test_less_air_than_naive(name):
     assert plan.path_length <= naive.path_length + GEOM_TOL
 
 
+@pytest.mark.parametrize("finishing", [False, True])
+@pytest.mark.parametrize("name", NAMES)
+def test_rapids_stop_the_clearance_away_from_the_stock_left(name, finishing):
+    """No rapid ends on a face or a surface: a servo overshoot of a few um at its end cuts nothing."""
+    args, plan, naive = plans(name, finishing_pass=finishing)
+    for p in (plan, naive):
+        model = StockModel(p.stock)
+        for a, m in p.segments()[:-1]:  # the last one ends at the origin
+            model.cut(a, m.end)
+            if m.kind == "rapid":
+                assert model.distance(m.end) >= args["clearance"] - GEOM_TOL, (name, m)
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_the_tool_stays_the_axial_allowance_off_shoulder_faces(name):
+    """Feeds end finish_allowance_z before a face: an overshoot in z on feedback stays in the allowance."""
+    args, plan, _ = plans(name, finishing_pass=True)
+    pts = plan.points(SAMPLE_STEP)
+    assert max_gouge(pts, args["profile"], args["finish_allowance"], args["finish_allowance_z"]) <= GEOM_TOL
+    # shifted 0.09 mm (< W = 0.1 mm) either way along z, the path is still clear of the part
+    for dz in (-mm(0.09), mm(0.09)):
+        assert max_gouge(pts + [dz, 0.0], args["profile"], 0.0) == 0.0
+    # with W = 0 the passes end on the faces themselves (a shoulder, or the part's end face under
+    # the casting's face stock): the same shift cuts into the part
+    flat = plan_roughing(**{**args, "finish_allowance_z": 0.0})
+    shifted = [max_gouge(flat.points(SAMPLE_STEP) + [dz, 0.0], args["profile"], 0.0) for dz in (-mm(0.09), mm(0.09))]
+    assert max(shifted) == pytest.approx(mm(0.09), abs=GEOM_TOL)
+
+
 def test_grooves_are_roughed_from_above():
     """The cone's square groove (z -26..-31, 9 mm) is cut below the 12 mm land to its right."""
     args, plan, _ = plans("cone")
     in_groove = [(a, m) for a, m in plan.segments()
                  if m.kind == "feed" and mm(-31.0) - GEOM_TOL <= m.z <= mm(-26.0) and m.x < mm(12.0)]
     assert in_groove
-    plunges = [(a, m) for a, m in in_groove if a[0] == m.z]
-    assert plunges and all(a[1] > m.x for a, m in plunges)  # the tool comes down onto the material
+    ramps = [(a, m) for a, m in in_groove if a[1] > m.x]  # the tool comes down onto the material
+    assert ramps
+    for a, m in ramps:  # on a 45-degree-or-steeper ramp that starts the clearance off the groove's wall
+        assert m.z - a[0] == pytest.approx(args["clearance"], abs=GEOM_TOL)
+        assert m.z == pytest.approx(mm(-26.0 - 0.1), abs=GEOM_TOL)  # the wall, less the axial allowance
 
 
 def test_dips_in_a_casting_are_crossed_at_rapid():
@@ -182,6 +236,21 @@ def test_max_gouge_measures_depth_inside_profile_plus_allowance():
     assert max_gouge(pts[:3], profile, mm(0.2)) == 0.0  # radial allowance: none on the shoulder face
     assert max_gouge(pts[:4], profile, mm(0.2)) == pytest.approx(mm(0.3))
     assert max_gouge(pts[4:], profile, mm(0.2)) == pytest.approx(mm(0.05))  # nearest way out: the face
+
+
+def test_offset_outline_moves_diameters_and_faces():
+    profile = [(0.0, mm(8.0)), (mm(-10.0), mm(8.0)), (mm(-10.0), mm(14.0)), (mm(-20.0), mm(14.0)),
+               (mm(-20.0), mm(9.0)), (mm(-25.0), mm(9.0)), (mm(-30.0), mm(14.0)), (mm(-40.0), mm(14.0))]
+    out = offset_outline(profile, mm(0.2), mm(0.1))
+    # faces move away from the part both ways: the shoulder at -10 (facing right) to -9.9, the
+    # groove's left wall at -20 (facing left) to -20.1, the right end face at 0 to 0.1; the slope
+    # (-25, 9) -> (-30, 14), approached from the right, by the rectangle's corner: right 0.1, up 0.2
+    want = [(0.1, 8.2), (-9.9, 8.2), (-9.9, 14.2), (-20.1, 14.2), (-20.1, 9.2), (-24.9, 9.2),
+            (-29.9, 14.2), (-40.0, 14.2)]
+    assert len(out) == len(want)
+    for (z, x), (wz, wx) in zip(out, want):
+        assert (z, x) == pytest.approx((mm(wz), mm(wx)), abs=1e-12)
+    assert offset_outline(profile, mm(0.2), 0.0) == [(z, x + mm(0.2)) for z, x in profile]
 
 
 def test_material_left_of_an_empty_path_is_the_whole_stock_above_the_profile():

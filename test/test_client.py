@@ -14,7 +14,8 @@ import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 
-from cnc_msgs_py.client import CncClient, load_job
+from cnc_msgs_py.client import CncClient
+from cnc_msgs_py.job import load_job
 from cnc_msgs_py.schema import JobError
 from cnc_planner.runner import Session
 from cnc_servo_bridge.recording import read_run

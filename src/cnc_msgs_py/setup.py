@@ -29,5 +29,5 @@ setup(
     description="CNC job, status and cancel schemas, topic names, QoS profiles and machine descriptions shared by the planner, the bridge and cell controllers.",
     license="Apache-2.0",
     tests_require=["pytest"],
-    entry_points={"console_scripts": ["cnc-submit = cnc_msgs_py.client:main"]},
+    entry_points={"console_scripts": ["cnc-submit = cnc_msgs_py.submit:main"]},
 )

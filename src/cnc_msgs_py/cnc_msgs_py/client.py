@@ -26,20 +26,14 @@ rclpy is imported only when a client is made: the rest of cnc_msgs_py stays ROS-
 """
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
-import os
-import sys
 import time
 from pathlib import Path
 from typing import Any, Callable
 
-import yaml
-
 from . import topics
-from .job import load_job_file, parse_job
-from .schema import JobError
+from .job import load_job
 from .status import FINAL_STATES, Status, encode_cancel
 
 CONNECT_TIMEOUT_S = 10.0  # how long submit waits for a planner to listen on job_goal
@@ -48,34 +42,6 @@ MATCH_OTHERS_S = 1.0  # then, at most this long for the other listeners on job_g
 
 class CncClientError(RuntimeError):
     """The planner could not be reached (no planner on the namespace's job_goal)."""
-
-
-def load_job(job: dict | str | Path) -> dict:
-    """A job document from a dict, YAML/JSON text or a file path, validated whole.
-
-    A string holding a newline, a '{' first or a 'key: value' pair is document text;
-    any other string is a file path.
-
-    Raises:
-        JobError: names the offending field and the reason (or the unreadable file).
-    """
-    if isinstance(job, Path):
-        doc = load_job_file(job)
-    elif isinstance(job, str):
-        text = job.strip()
-        if "\n" in text or text.startswith("{") or ": " in text:
-            try:
-                doc = yaml.safe_load(text)
-            except yaml.YAMLError as err:
-                raise JobError("", f"job text is not valid YAML/JSON ({err})") from err
-        else:
-            doc = load_job_file(text)
-    else:
-        doc = job
-    if not isinstance(doc, dict):
-        raise JobError("", "a job document must be a mapping")
-    parse_job(doc)
-    return doc
 
 
 class CncClient:
@@ -218,97 +184,3 @@ class CncClient:
 
 
 # -- cnc-submit -----------------------------------------------------------------------
-
-
-def main(argv: list[str] | None = None) -> int:
-    """cnc-submit JOB: send a job to running CNC nodes and wait for its final status."""
-    parser = argparse.ArgumentParser(
-        prog="cnc-submit", description=main.__doc__,
-        epilog="Exit codes: 0 succeeded (or canceled as asked by --cancel-after), 1 rejected, aborted or "
-               "canceled, 2 bad job or arguments, 3 no planner or timeout. The final status (cnc_status/1, "
-               "JSON) is printed on stdout; progress goes to stderr.")
-    parser.add_argument("job", help="job document: a YAML or JSON file")
-    parser.add_argument("--namespace", default=topics.NAMESPACE, help="the nodes' namespace (default /cnc)")
-    parser.add_argument("--timeout", type=float, default=600.0, help="wall-clock limit for the job (s)")
-    parser.add_argument("--cancel-after", type=float, default=None, metavar="S",
-                        help="cancel the job S seconds (wall clock) after sending it")
-    args = parser.parse_args(argv)
-    for name in ("timeout", "cancel_after"):
-        value = getattr(args, name)
-        if value is not None and not value > 0:
-            return _fail(f"--{name.replace('_', '-')}: must be > 0 s, got {value:g}")
-    try:
-        doc = load_job(Path(args.job))
-    except JobError as err:
-        return _fail(f"{args.job}: {err}" if err.field else str(err))
-    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-
-    import rclpy
-    from rclpy.executors import ExternalShutdownException
-    from rclpy.signals import SignalHandlerOptions
-
-    # Python's own SIGINT handling: Ctrl-C raises KeyboardInterrupt and the node still
-    # works, so the job can be canceled on the way out.
-    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    node = rclpy.create_node(f"cnc_submit_{os.getpid()}")
-    client = CncClient(node, args.namespace)
-    job_id = doc["job_id"]
-    shown = _progress_printer()
-    client.on_progress(shown)
-    try:
-        client.submit(doc)
-        print(f"cnc-submit: sent {job_id} to {client.goal_topic}", file=sys.stderr, flush=True)
-        if args.cancel_after is not None:
-            try:
-                final = client.wait(job_id, args.cancel_after)
-            except TimeoutError:
-                client.cancel(job_id)
-                final = None
-            final = final or client.wait(job_id, args.timeout)
-        else:
-            final = client.wait(job_id, args.timeout)
-    except (CncClientError, TimeoutError) as err:
-        return _fail(str(err), 3, cleanup=lambda: _shutdown(node))
-    except (KeyboardInterrupt, ExternalShutdownException):
-        try:
-            client.cancel(job_id)
-        finally:
-            _shutdown(node)
-        return _fail(f"interrupted: asked the planner to cancel {job_id}", 130)
-    getattr(shown, "close", lambda: None)()
-    print(json.dumps(final))
-    _shutdown(node)
-    if final["state"] == "succeeded" or (final["state"] == "canceled" and args.cancel_after is not None):
-        return 0
-    return 1
-
-
-def _progress_printer() -> Callable[[dict], None]:
-    """cnc-run's progress display on stderr when cnc_planner is installed, else plain lines."""
-    try:
-        from cnc_planner.progress import Progress  # optional: cnc_msgs_py does not depend on it
-
-        return Progress(sys.stderr)
-    except ImportError:
-        def show(status: dict) -> None:
-            if status["state"] != "running":
-                print(f"  {status['job_id']}: {status['state']}", file=sys.stderr, flush=True)
-        return show
-
-
-def _shutdown(node: Any) -> None:
-    import rclpy
-
-    node.destroy_node()
-    rclpy.try_shutdown()
-
-
-def _fail(message: str, code: int = 2, cleanup: Callable[[], None] | None = None) -> int:
-    if cleanup is not None:
-        cleanup()
-    print(f"cnc-submit: {message}", file=sys.stderr)
-    return code
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -331,6 +331,34 @@ def load_job_file(path: str | Path) -> dict:
     return doc
 
 
+def load_job(job: dict | str | Path) -> dict:
+    """A job document from a dict, YAML/JSON text or a file path, validated whole.
+
+    A string holding a newline, a '{' first or a 'key: value' pair is document text;
+    any other string is a file path.
+
+    Raises:
+        JobError: names the offending field and the reason (or the unreadable file).
+    """
+    if isinstance(job, Path):
+        doc = load_job_file(job)
+    elif isinstance(job, str):
+        text = job.strip()
+        if "\n" in text or text.startswith("{") or ": " in text:
+            try:
+                doc = yaml.safe_load(text)
+            except yaml.YAMLError as err:
+                raise JobError("", f"job text is not valid YAML/JSON ({err})") from err
+        else:
+            doc = load_job_file(text)
+    else:
+        doc = job
+    if not isinstance(doc, dict):
+        raise JobError("", "a job document must be a mapping")
+    parse_job(doc)
+    return doc
+
+
 def job_id_of(doc: Any) -> str:
     """The job_id of a document even if it is invalid, for status messages."""
     if isinstance(doc, dict) and isinstance(doc.get("job_id"), str):

@@ -1,0 +1,112 @@
+"""cnc-submit: send a job to running nodes from the shell and follow it to the end.
+
+Validation happens before anything is sent; a bad job or a missing file is one line on
+stderr (exit 2), no traceback. Exit 0 if the job succeeded (or was canceled as asked),
+1 if it was rejected, aborted or canceled, 3 if no planner answered in time.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+from typing import Any, Callable
+
+from . import topics
+from .client import CncClient, CncClientError
+from .job import load_job
+from .schema import JobError
+
+def main(argv: list[str] | None = None) -> int:
+    """cnc-submit JOB: send a job to running CNC nodes and wait for its final status."""
+    parser = argparse.ArgumentParser(
+        prog="cnc-submit", description=main.__doc__,
+        epilog="Exit codes: 0 succeeded (or canceled as asked by --cancel-after), 1 rejected, aborted or "
+               "canceled, 2 bad job or arguments, 3 no planner or timeout. The final status (cnc_status/1, "
+               "JSON) is printed on stdout; progress goes to stderr.")
+    parser.add_argument("job", help="job document: a YAML or JSON file")
+    parser.add_argument("--namespace", default=topics.NAMESPACE, help="the nodes' namespace (default /cnc)")
+    parser.add_argument("--timeout", type=float, default=600.0, help="wall-clock limit for the job (s)")
+    parser.add_argument("--cancel-after", type=float, default=None, metavar="S",
+                        help="cancel the job S seconds (wall clock) after sending it")
+    args = parser.parse_args(argv)
+    for name in ("timeout", "cancel_after"):
+        value = getattr(args, name)
+        if value is not None and not value > 0:
+            return _fail(f"--{name.replace('_', '-')}: must be > 0 s, got {value:g}")
+    try:
+        doc = load_job(Path(args.job))
+    except JobError as err:
+        return _fail(f"{args.job}: {err}" if err.field else str(err))
+    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.signals import SignalHandlerOptions
+
+    # Python's own SIGINT handling: Ctrl-C raises KeyboardInterrupt and the node still
+    # works, so the job can be canceled on the way out.
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node(f"cnc_submit_{os.getpid()}")
+    client = CncClient(node, args.namespace)
+    job_id = doc["job_id"]
+    shown = _progress_printer()
+    client.on_progress(shown)
+    try:
+        client.submit(doc)
+        print(f"cnc-submit: sent {job_id} to {client.goal_topic}", file=sys.stderr, flush=True)
+        if args.cancel_after is not None:
+            try:
+                final = client.wait(job_id, args.cancel_after)
+            except TimeoutError:
+                client.cancel(job_id)
+                final = None
+            final = final or client.wait(job_id, args.timeout)
+        else:
+            final = client.wait(job_id, args.timeout)
+    except (CncClientError, TimeoutError) as err:
+        return _fail(str(err), 3, cleanup=lambda: _shutdown(node))
+    except (KeyboardInterrupt, ExternalShutdownException):
+        try:
+            client.cancel(job_id)
+        finally:
+            _shutdown(node)
+        return _fail(f"interrupted: asked the planner to cancel {job_id}", 130)
+    getattr(shown, "close", lambda: None)()
+    print(json.dumps(final))
+    _shutdown(node)
+    if final["state"] == "succeeded" or (final["state"] == "canceled" and args.cancel_after is not None):
+        return 0
+    return 1
+
+
+def _progress_printer() -> Callable[[dict], None]:
+    """cnc-run's progress display on stderr when cnc_planner is installed, else plain lines."""
+    try:
+        from cnc_planner.progress import Progress  # optional: cnc_msgs_py does not depend on it
+
+        return Progress(sys.stderr)
+    except ImportError:
+        def show(status: dict) -> None:
+            if status["state"] != "running":
+                print(f"  {status['job_id']}: {status['state']}", file=sys.stderr, flush=True)
+        return show
+
+
+def _shutdown(node: Any) -> None:
+    import rclpy
+
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
+def _fail(message: str, code: int = 2, cleanup: Callable[[], None] | None = None) -> int:
+    if cleanup is not None:
+        cleanup()
+    print(f"cnc-submit: {message}", file=sys.stderr)
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

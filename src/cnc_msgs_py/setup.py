@@ -21,6 +21,7 @@ setup(
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
         (f"share/{PACKAGE}/config/machines", config("machines/*.yaml")),
+        (f"share/{PACKAGE}/config", config("work_offsets.yaml")),
     ],
     install_requires=["setuptools"],
     zip_safe=True,

@@ -147,6 +147,9 @@ JOB = Obj({
     "setup": Obj({
         "origin": List(Num("mm"), length=3, default=[0.0, 0.0, 0.0]),
         "rotation_deg": List(Num("deg"), length=3, default=[0.0, 0.0, 0.0]),
+        # A named work offset of config/work_offsets.yaml instead of origin/rotation_deg
+        # (the planner resolves it; with it, origin and rotation_deg must be left out or 0).
+        "work_offset": Str(pattern=r"[A-Za-z0-9_.-]{1,64}", default=None),
     }, default={}),
     "spindle_rpm": Num("rpm", min=0.0, max=100_000.0, default=0.0),
     "drill": DRILL,

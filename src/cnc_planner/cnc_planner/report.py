@@ -23,7 +23,7 @@ from cnc_servo_bridge.recording import Run
 from cnc_servo_bridge.thread_analysis import analyze_thread
 
 from .drilling import lower_bound_time
-from .jobs import drill_cycle, plan_job
+from .jobs import drill_cycle, plan_job, tilted, tilted_frame
 from .kinematics import Kinematics
 from .path_report import path_section
 from .turning import max_gouge, plan_naive, plan_roughing
@@ -109,22 +109,44 @@ def simulated_feedback(plan, machine: Machine, period: float = 1e-3) -> tuple[np
 def drill_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray) -> dict:
     kin = Kinematics(machine, job.setup, job.tool)
     cycle = drill_cycle(job, machine, kin)
+    # A tilted setup drills in program coordinates (tool along program Z): analyse there,
+    # from the cycle's start (the first S1): before it the rotaries turn from wherever
+    # the machine stood, where the program's R plane means nothing yet.
+    frame = tilted(kin) and machine.layout != "mill3"
+    start = {j: float(run.feedback[window][0, run.column(j)]) for j in run.joints}
+    if frame:
+        begin = run.feedback_t[window][0]
+        s1 = [e["stamp_ns"] / 1e9 for e in run.events
+              if e.get("name") == "S1" and "stamp_ns" in e and e["stamp_ns"] / 1e9 >= begin - 1e-9]
+        if s1:
+            window = window & (run.feedback_t >= min(s1) - 1e-9)
     t = run.feedback_t[window]
     fb = run.feedback[window]
-    col = run.column
-    result = analyze_drilling(t, fb[:, col("x")], fb[:, col("y")], fb[:, col("z")],
-                              cycle.holes, cycle.r_z, cycle.xy_tolerance, cycle.surface_z)
+
+    def xyz(joints, feedback: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if not frame:
+            return tuple(feedback[:, list(joints).index(j)] for j in "xyz")  # type: ignore[return-value]
+        tips, _ = kin.fk_many({j: feedback[:, i] for i, j in enumerate(joints) if j != SPINDLE})
+        return tips[:, 0], tips[:, 1], tips[:, 2]
+
+    result = analyze_drilling(t, *xyz(run.joints, fb), cycle.holes, cycle.r_z, cycle.xy_tolerance,
+                              cycle.surface_z)
     modes = {e["hole"]: e["mode"] for e in run.events if e.get("name") == "S1"}
     for hole in result["holes"]:
         hole["mode"] = modes.get(hole["index"])
-    start = {j: float(run.feedback[window][0, col(j)]) for j in run.joints}
     conventional = SimpleNamespace(**{**vars(job), "drill": SimpleNamespace(**{**vars(job.drill), "overlap": "off"})})
     conv_plan = plan_job(conventional, machine, start)
     ct, cfb = simulated_feedback(conv_plan, machine)
-    conv = analyze_drilling(ct, cfb[:, 0], cfb[:, 1], cfb[:, 2], cycle.holes, cycle.r_z, cycle.xy_tolerance,
+    if frame:
+        keep = ct >= min(e.time for e in conv_plan.events if e.name == "S1") - 1e-9
+        ct, cfb = ct[keep], cfb[keep]
+    conv = analyze_drilling(ct, *xyz(conv_plan.joints, cfb), cycle.holes, cycle.r_z, cycle.xy_tolerance,
                             cycle.surface_z)
     result["conventional_cycle_time_s"] = conv["cycle_time_s"]
-    result["lower_bound_s"] = lower_bound_time(machine, cycle, (start["x"], start["y"]))
+    if frame:  # from the cycle's start, over the first hole; in the tilted frame's limits
+        result["lower_bound_s"] = lower_bound_time(tilted_frame(job, machine, kin).machine, cycle)
+    else:
+        result["lower_bound_s"] = lower_bound_time(machine, cycle, (start["x"], start["y"]))
     return result
 
 

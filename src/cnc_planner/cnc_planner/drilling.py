@@ -287,10 +287,13 @@ def _xy_move(machine: Machine, p0: tuple[float, float], p1: tuple[float, float],
     p = move.sample_all(np.minimum(ts, move.duration))[0]
     start = np.array([dict(zip(XY, p0))[j] for j in joints])
     end = np.array([target[j] for j in joints])
-    # Conservative on the sampling grid: leave one step early, arrive one step late.
+    # Conservative on the sampling grid: leave one step early, arrive one step late. A
+    # move shorter than the tolerance (a hole given twice) never leaves it at all.
     left = np.nonzero(np.linalg.norm(p - start, axis=1) > tol)[0]
     away = np.nonzero(np.linalg.norm(p - end, axis=1) > tol)[0]
-    return _XYMove(target, move, max(ts[left[0]] - FINE_STEP, 0.0), ts[away[-1]] + FINE_STEP, tuple(joints))
+    leave = max(ts[left[0]] - FINE_STEP, 0.0) if len(left) else math.inf
+    arrive = ts[away[-1]] + FINE_STEP if len(away) else 0.0
+    return _XYMove(target, move, leave, arrive, tuple(joints))
 
 
 def _xy_correction(machine: Machine, period: float, xy: _XYMove) -> np.ndarray:
@@ -627,8 +630,8 @@ def plan_drilling(builder: PlanBuilder, cycle: DrillCycle) -> list[dict]:
     # back inside the tolerance before Z goes below R (in whole servo periods).
     period = cycle.servo_period
     floor_down = np.array([math.ceil((xy.arrive - xy.duration) / period - 1e-9) * period for xy in job.xy])
-    floor_up = np.array([0.0] + [-math.floor(xy.leave / period + 1e-9) * period if xy.move else 0.0
-                                 for xy in job.xy[1:]])
+    floor_up = np.array([0.0] + [-math.floor(xy.leave / period + 1e-9) * period
+                                 if xy.move and math.isfinite(xy.leave) else 0.0 for xy in job.xy[1:]])
     xy_time = np.array([xy.duration for xy in job.xy])
 
     def retracts(e_down: np.ndarray, e_up: np.ndarray) -> list[_Retract]:

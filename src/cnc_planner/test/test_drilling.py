@@ -227,3 +227,18 @@ def test_conventional_cycle_is_sequential():
         assert after["s1"] >= before["r_up"]
     result = analysis(cycle, ts, commands)
     assert all(hole["overlap_down_s"] == 0.0 and hole["overlap_up_s"] == 0.0 for hole in result["holes"])
+
+
+def test_a_hole_given_twice_or_a_hair_apart_plans_and_stays_safe():
+    """A repeated hole (or one closer than the X/Y tolerance) is drilled again, safely."""
+    builder = PlanBuilder(MACHINE, {"x": 0.0, "y": 0.0, "z": 0.01})
+    holes = [(0.0, 0.0), (0.0, 0.0), (1e-6, 0.0), (0.01, 0.0)]
+    cycle = DrillCycle(holes=holes, surface_z=0.0, bottom_z=-0.005, r_z=0.002, feed=0.02)
+    infos = plan_drilling(builder, cycle)
+    assert len(infos) == 4
+    plan = builder.build()
+    t = np.arange(0.0, plan.duration, 1e-3)
+    p, v, a = plan.sample(t)
+    fb, _ = DriveModel(MACHINE, 1e-3, plan.joints).simulate(p, v, a)
+    result = analyze_drilling(t, fb[:, 0], fb[:, 1], fb[:, 2], holes, cycle.r_z, cycle.xy_tolerance)
+    assert result["safety_violations"] == 0

@@ -72,3 +72,10 @@ def test_conventional_thread_is_correct_but_its_chips_are_long(tmp_path):
     thread = report["thread"]
     assert thread["full_depth"] and thread["helix_residual_mm"] < 0.01
     assert thread["max_chip_revs"] > 5.0
+
+
+def test_tilted_holes_on_a_five_axis_machine_are_safe_on_feedback(tmp_path):
+    report = run_and_reanalyse("drill_5ax_tilted.yaml", tmp_path / "tilted")
+    drill = report["drill"]
+    assert drill["safety_violations"] == 0 and len(drill["holes"]) == 5
+    assert drill["cycle_time_s"] < drill["conventional_cycle_time_s"]

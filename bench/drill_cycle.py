@@ -23,6 +23,7 @@ from cnc_planner.builder import PlanBuilder  # noqa: E402
 from cnc_planner.drilling import DrillCycle, lower_bound_time, plan_drilling  # noqa: E402
 from cnc_servo_bridge.drill_analysis import analyze_drilling  # noqa: E402
 from cnc_servo_bridge.drive import DriveModel  # noqa: E402
+from publish import write_result  # noqa: E402
 
 MACHINE = load_machine("mill3")
 PITCHES_MM = (3, 10, 40, 150)
@@ -123,9 +124,7 @@ def main() -> None:
     lines.append("")
     lines.append(FOOTNOTES)
     print(FOOTNOTES)
-    out = ROOT / "bench" / "results" / "drill_cycle.txt"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text("\n".join(lines))
+    out = write_result("drill_cycle.txt", "\n".join(lines))
     print(f"written {out} in {time.perf_counter() - begin:.0f} s")
 
 

@@ -29,9 +29,9 @@ sys.path[:0] = [str(ROOT / "src" / p) for p in ("cnc_msgs_py", "cnc_planner", "c
 from cnc_msgs_py.job import job_id_of, load_job_file, parse_job  # noqa: E402
 from cnc_msgs_py.machine import load_machine  # noqa: E402
 from cnc_planner.jobs import plan_job  # noqa: E402
+from publish import write_result  # noqa: E402
 
 JOBS = ROOT / "config" / "jobs"
-RESULTS = ROOT / "bench" / "results" / "load.txt"
 TEN_K_BUDGET_S = 120.0  # plan the 10,000-hole job only if 1000 holes x 10 fits in this
 
 
@@ -188,8 +188,7 @@ def main() -> int:
     lines += ["", NOTES.format(cpus=os.cpu_count())]
     text = "\n".join(lines)
     print(text)
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(text + "\n")
+    write_result("load.txt", text)
     return 0
 
 

@@ -40,6 +40,7 @@ from cnc_planner.thread_cutting import (  # noqa: E402
 )
 from cnc_servo_bridge.drive import DriveModel  # noqa: E402
 from cnc_servo_bridge.thread_analysis import analyze_thread  # noqa: E402
+from publish import write_result  # noqa: E402
 
 SERVO_PERIOD = 1e-3
 LOW_RPM = 300.0
@@ -152,9 +153,7 @@ def main() -> None:
     ]
     text = "\n".join(lines)
     print(text)
-    out = ROOT / "bench" / "results" / "thread_chips.txt"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(text + "\n")
+    write_result("thread_chips.txt", text)
 
 
 if __name__ == "__main__":

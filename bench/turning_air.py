@@ -23,8 +23,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 from cnc_msgs_py.units import to_mm  # noqa: E402
 from cnc_planner.turning import RoughingPlan, plan_naive, plan_roughing  # noqa: E402
 from cnc_planner.turning_examples import EXAMPLES, roughing_args  # noqa: E402
+from publish import RESULTS, write_result  # noqa: E402
 
-RESULTS = REPO / "bench" / "results"
 
 
 def saving(ours: float, naive: float) -> str:
@@ -88,8 +88,7 @@ def main() -> None:
         plans[name] = (plan_roughing(**args), plan_naive(**args))
     text = table(plans)
     print(text)
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    (RESULTS / "turning_air.txt").write_text(text + "\n")
+    write_result("turning_air.txt", text)
     draw(plans, RESULTS / "turning_passes.png")
 
 

@@ -41,6 +41,7 @@ from cnc_planner.vibration import (  # noqa: E402
 )
 from cnc_servo_bridge.aircut import analyze_aircut  # noqa: E402
 from cnc_servo_bridge.drive import DriveModel  # noqa: E402
+from publish import write_result  # noqa: E402
 
 F = 1e-4  # m/rev
 REVS = 10  # feed length in revolutions
@@ -151,9 +152,7 @@ def main() -> None:
     lines.append(f"({time.perf_counter() - start:.0f} s)")
     text = "\n".join(lines)
     print(text)
-    out = ROOT / "bench" / "results" / "vibration_speed.txt"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(text + "\n")
+    write_result("vibration_speed.txt", text)
 
 
 if __name__ == "__main__":

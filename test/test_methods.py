@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
+from cnc_msgs_py.job import load_job_file
+from cnc_servo_bridge.recording import read_run
 from support import JOBS, cnc, load_report
 
 
@@ -65,6 +68,33 @@ def test_thread_with_vibration_breaks_chips_on_every_pass_on_feedback(tmp_path):
     assert thread["overcut_mm"] <= 0.02
     assert thread["helix_residual_mm"] < 0.01
     assert thread["doc_never_grows"]
+
+
+def test_thread_honours_setup_and_tool_length_on_the_axes(tmp_path):
+    """thread_m12 with the part's face 100 mm down z and a 20 mm tool: the report, judged
+    in program coordinates, is as good as without; the axes really ran 100 mm down z."""
+    doc = {**load_job_file(JOBS / "thread_m12.yaml"), "job_id": "thread-m12-placed",
+           "setup": {"origin": [0, 0, -100], "rotation_deg": [0, 0, 0]}, "tool": {"length": 20}}
+    (tmp_path / "placed.json").write_text(json.dumps(doc))
+    report = run_and_reanalyse(tmp_path / "placed.json", tmp_path / "placed")
+    thread = report["thread"]
+    assert thread["synchronised_passes"] == 7
+    for p in thread["passes"]:
+        if p["doc_mm"] > 0.05:
+            assert p["max_chip_revs"] <= 1.0
+    assert thread["full_depth"] and abs(thread["depth_error_mm"]) <= 0.02
+    assert thread["helix_residual_mm"] < 0.01
+    run = read_run(tmp_path / "placed" / "bag")
+    t, x, z = run.feedback_t, run.feedback[:, run.column("x")] * 1e3, run.feedback[:, run.column("z")] * 1e3
+    syncs = [e["stamp_ns"] / 1e9 for e in run.events if e.get("name") == "sync"]
+    starts = [e["stamp_ns"] / 1e9 for e in run.events if e.get("name") == "thread_pass"]
+    assert len(syncs) == 7
+    for sync, following in zip(syncs, starts[1:] + [np.inf]):
+        on_pass = (t >= sync) & (t < following)  # on the helix, out past end_z and back
+        assert -118.0 <= z[on_pass].min() and z[on_pass].max() <= -95.0
+        on_helix = on_pass & (t < t[on_pass & (z <= -116.0)].min())  # until it passes end_z
+        assert on_helix.sum() > 1000  # 20 mm of thread at 17.5 mm/s
+        assert 20.0 + 4.9 <= x[on_helix].min() and x[on_helix].max() <= 20.0 + 6.1
 
 
 def test_conventional_thread_is_correct_but_its_chips_are_long(tmp_path):

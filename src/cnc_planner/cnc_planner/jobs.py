@@ -136,18 +136,15 @@ def _along(move: VibrationFeed, p0: float, d: float):
     return sample
 
 
-def plan_move(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin: Kinematics) -> None:
-    """A list of rapid, linear and dwell moves in absolute program coordinates."""
-    tip = kin.to_program({j: builder.position(j) for j in machine.linear_axes})
-    vibration = vibration_of(job)
-    if job.spindle_rpm > 0:
-        builder.spindle(job.spindle_rpm)
+def move_targets(job: SimpleNamespace, machine: Machine, kin: Kinematics,
+                 start: dict[str, float]) -> list[dict[str, float] | None]:
+    """Every move's axis target (None for a dwell), from the machine at ``start``, checked
+    against the travel: a program is checked whole before any of it is planned."""
+    tip = kin.to_program({j: start.get(j, 0.0) for j in machine.linear_axes})
+    targets: list[dict[str, float] | None] = []
     for i, move in enumerate(job.move):
-        start = builder.end_time()
         if move.dwell is not None:
-            for joint in machine.linear_axes:
-                builder.timelines[joint].add_hold(start, move.dwell)
-            builder.event(start, "dwell", move=i)
+            targets.append(None)
             continue
         kind = "rapid" if move.rapid is not None else "linear"
         target = getattr(move, kind)
@@ -156,6 +153,24 @@ def plan_move(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin:
             tip[key] = getattr(target, key)
         axes = to_axes(kin, tip, field)
         check_travel(machine, axes, field)
+        targets.append(axes)
+    return targets
+
+
+def plan_move(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin: Kinematics) -> None:
+    """A list of rapid, linear and dwell moves in absolute program coordinates."""
+    targets = move_targets(job, machine, kin, {j: builder.position(j) for j in machine.linear_axes})
+    vibration = vibration_of(job)
+    if job.spindle_rpm > 0:
+        builder.spindle(job.spindle_rpm)
+    for i, (move, axes) in enumerate(zip(job.move, targets)):
+        start = builder.end_time()
+        if axes is None:
+            for joint in machine.linear_axes:
+                builder.timelines[joint].add_hold(start, move.dwell)
+            builder.event(start, "dwell", move=i)
+            continue
+        kind = "rapid" if move.rapid is not None else "linear"
         builder.event(start if kind == "rapid" else max(start, builder.spindle_ready), kind, move=i)
         if kind == "rapid":
             builder.rapid(axes)
@@ -305,7 +320,7 @@ def plan_drill_tilted(job: SimpleNamespace, machine: Machine, builder: PlanBuild
     t0 = builder.end_time()
     # The cycle's timing search starts with the drives at rest: wait for the rapids'
     # feedback (rotaries included) to settle, and for the spindle.
-    settle = _settle_time(builder, kin, t0, 0.1 * c.xy_tolerance, c.servo_period)
+    settle = settle_time(builder, kin, t0, 0.1 * c.xy_tolerance, c.servo_period)
     for j in (*XYZ, *frame.rotaries):
         builder.timelines[j].add_hold(t0, max(settle, builder.spindle_ready - t0))
     start = dict(zip(XYZ, frame.to_frame([builder.position(j) for j in XYZ])))
@@ -330,7 +345,7 @@ def plan_drill_tilted(job: SimpleNamespace, machine: Machine, builder: PlanBuild
             check_travel(machine, {j: float(p[worst])}, "drill")
 
 
-def _settle_time(builder: PlanBuilder, kin: Kinematics, t0: float, tol: float, period: float,
+def settle_time(builder: PlanBuilder, kin: Kinematics, t0: float, tol: float, period: float,
                  horizon: float = 2.0) -> float:
     """How long after ``t0`` (all axes commanded at rest) the drive model's feedback puts
     the tip within ``tol`` of the commanded tip, in whole servo periods."""
@@ -400,10 +415,37 @@ def plan_turn(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin:
         feed_move(builder, target, t.feed, vibration if move.cutting else None, "turn")
 
 
+THREAD_PROBE = 0.01  # m: program radius and z steps at which the thread's axis map is probed
+THREAD_AXIS_TOL = 1e-9  # m: the probed axis positions agree with a translation within this
+
+
+def thread_origin(kin: Kinematics) -> tuple[float, float]:
+    """Axis (x, z) of the tip on the spindle axis at the program's face z=0.
+
+    The thread planner works in program radius and z and adds this, so the map from them
+    to axis x and z must be that translation at every angle around the part: the program
+    Z is the spindle axis (a setup turned about Z only turns the part on the spindle).
+    """
+    reason = "a thread's axis must be the spindle axis: turn the setup about Z only, its origin on that axis"
+    quarters = [(float(np.cos(a)), float(np.sin(a))) for a in np.arange(4) * (np.pi / 2)]
+    try:  # a tool axis tilted out of the plane normal to the spindle, or a lathe tip off y = 0
+        probes = [(kin.to_axes({"x": r * c, "y": r * s, "z": z}, [c, s, 0.0]), r, z)
+                  for c, s in quarters for r, z in ((0.0, 0.0), (THREAD_PROBE, 0.0), (0.0, THREAD_PROBE))]
+    except JobError as err:
+        raise JobError("setup", reason) from err
+    x0, z0 = probes[0][0]["x"], probes[0][0]["z"]  # the face, at angle 0
+    if any(abs(axes[j] - {"x": x0 + r, "z": z0 + z}.get(j, 0.0)) > THREAD_AXIS_TOL
+           for axes, r, z in probes for j in axes):
+        raise JobError("setup", reason)
+    return x0, z0
+
+
 def plan_thread_job(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin: Kinematics) -> None:
-    """Multi-pass thread on the lathe, with vibration along the infeed if given."""
+    """Multi-pass thread on the lathe, with vibration along the infeed if given, placed on
+    the axes by the setup and tool length."""
+    origin = thread_origin(kin)
     try:
-        spec = ThreadSpec.from_job(job)
+        spec = ThreadSpec.from_job(job, origin)
         check_thread(spec, machine)
     except ThreadError as err:
         field, _, reason = str(err).partition(": ")
@@ -426,6 +468,19 @@ def plan_job(job: SimpleNamespace, machine: Machine, start_position: dict[str, f
     Raises:
         JobError: the job cannot be done on this machine (field and reason named).
     """
+    builder = PlanBuilder(machine, start_position)
+    builder.event(0.0, "job_start", kind=job.kind)
+    plan = plan_into(job, machine, builder)
+    plan.events.append(Event(plan.duration, "job_end"))
+    return plan
+
+
+def plan_into(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, stop_spindle: bool = True) -> Plan:
+    """Plan a validated job (or one segment of a long one) into ``builder`` and build it.
+
+    Raises:
+        JobError: the job cannot be done on this machine (field and reason named).
+    """
     if job.machine != machine.name:
         raise JobError("machine", f"job is for '{job.machine}', this planner runs '{machine.name}'")
     planner = PLANNERS.get(job.kind)
@@ -437,11 +492,9 @@ def plan_job(job: SimpleNamespace, machine: Machine, start_position: dict[str, f
                                f"(layouts that can: {', '.join(layouts)})")
     if job.spindle_rpm > machine.axes[SPINDLE].max_velocity:
         raise JobError("spindle_rpm", f"exceeds the spindle's {to_rpm(machine.axes[SPINDLE].max_velocity):.0f} rpm")
-    builder = PlanBuilder(machine, start_position)
-    builder.event(0.0, "job_start", kind=job.kind)
     try:
         planner(job, machine, builder, Kinematics(machine, job.setup, job.tool))
-        plan = builder.build()
+        return builder.build(stop_spindle)
     except JobError:
         raise
     except Exception as err:  # noqa: BLE001 (MemoryError, RecursionError, KeyError, ruckig's ...)
@@ -449,5 +502,3 @@ def plan_job(job: SimpleNamespace, machine: Machine, start_position: dict[str, f
         # as the kind's block (INTERNAL marks it, so tests can tell it from a real check).
         first = (str(err).splitlines() or [""])[0][:120]
         raise JobError(job.kind, f"{INTERNAL} ({type(err).__name__}: {first})") from err
-    plan.events.append(Event(plan.duration, "job_end"))
-    return plan

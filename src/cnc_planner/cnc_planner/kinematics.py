@@ -310,6 +310,12 @@ class Kinematics:
         tips, _ = self.fk_many({j: [v] for j, v in axes.items()})
         return {name: float(v) for name, v in zip("xyz", tips[0]) if name in self.machine.linear_axes}
 
+    def tip_radius_z(self, x: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Program radius and z of the tip for lathe joint arrays x and z, what turned parts
+        are judged in. The spindle is taken at 0: it turns the part, not the tip's radius."""
+        tips, _ = self.fk_many({"x": x, "z": z})
+        return np.hypot(tips[:, 0], tips[:, 1]), tips[:, 2]
+
     # --- arrays of poses -------------------------------------------------------------------
 
     def ik_many(self, tips: np.ndarray, axes: np.ndarray | None = None,

@@ -278,8 +278,8 @@ def _turn_passes(run: Run, job: SimpleNamespace, machine: Machine, window: np.nd
                          tj.finish_allowance, tj.finishing_pass, tj.finish_allowance_z)
     kin = Kinematics(machine, job.setup, job.tool)
     fb = run.feedback[window][_stride(int(window.sum()))]
-    tips, _ = kin.fk_many({"x": fb[:, run.column("x")], "z": fb[:, run.column("z")]})
-    tip = tips[:, [2, 0]]  # (z, radius)
+    radius, axial = kin.tip_radius_z(fb[:, run.column("x")], fb[:, run.column("z")])
+    tip = np.stack([axial, radius], axis=1)
     # the rapid from wherever the job found the tool to the cycle's start point comes first
     starts = np.array([tip[0]] + [a for a, _ in plan.segments()])
     ends = np.array([plan.origin] + [m.end for _, m in plan.segments()])

@@ -85,7 +85,7 @@ def build_report(run: Run) -> dict:
     if job.kind == "path":
         report["kinematics"] = path_section(run, job, machine, window)
     if job.kind == "thread":
-        report["thread"] = thread_section(run, window)
+        report["thread"] = thread_section(run, job, machine, window)
     elif job.vibration is not None:
         report["aircut"] = aircut_section(run)
     return report
@@ -158,9 +158,10 @@ def turn_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.nd
     ours = plan_roughing(**args, finishing_pass=t.finishing_pass)
     naive = plan_naive(**args, finishing_pass=t.finishing_pass)
     kin = Kinematics(machine, job.setup, job.tool)
+
     def tips(positions: np.ndarray) -> np.ndarray:
-        points = [kin.to_program({"x": x, "z": z}) for x, z in positions[:, [run.column("x"), run.column("z")]]]
-        return np.array([[p["z"], p["x"]] for p in points])
+        radius, z = kin.tip_radius_z(positions[:, run.column("x")], positions[:, run.column("z")])
+        return np.stack([z, radius], axis=1)
 
     tip_zx = tips(run.feedback[window])
     commanded = tips(run.command[run.command_t >= run.feedback_t[window][0]])
@@ -179,13 +180,19 @@ def turn_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.nd
     }
 
 
-def thread_section(run: Run, window: np.ndarray) -> dict:
-    """Passes, chips, depth and helix accuracy of a thread, on feedback and on commands."""
+def thread_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray) -> dict:
+    """Passes, chips, depth and helix accuracy of a thread, on feedback and on commands,
+    judged in program coordinates (the thread block's), whatever the setup and tool length."""
     thread = json.loads(run.goals[-1])["thread"]
-    cols = [run.column(j) for j in ("x", "z", SPINDLE)]
-    feedback = analyze_thread(run.feedback_t[window], *run.feedback[window][:, cols].T, thread)
+    kin = Kinematics(machine, job.setup, job.tool)
+
+    def judge(t: np.ndarray, positions: np.ndarray) -> dict:
+        radius, z = kin.tip_radius_z(positions[:, run.column("x")], positions[:, run.column("z")])
+        return analyze_thread(t, radius, z, positions[:, run.column(SPINDLE)], thread)
+
+    feedback = judge(run.feedback_t[window], run.feedback[window])
     inside = run.command_t >= run.feedback_t[window][0]
-    commanded = analyze_thread(run.command_t[inside], *run.command[inside][:, cols].T, thread)
+    commanded = judge(run.command_t[inside], run.command[inside])
     return {**feedback, "commanded": {k: commanded[k] for k in ("max_chip_revs", "helix_residual_mm", "depth_error_mm")}}
 
 

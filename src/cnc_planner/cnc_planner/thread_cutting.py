@@ -1,6 +1,12 @@
 """Thread cutting on the lathe: multi-pass synchronised helix, optionally with a
 chip-breaking vibration along the infeed direction (design, method 4).
 
+Coordinates are the program's, as the job writes them: radius x and z, the face at z=0.
+`origin`, the axis (x, z) that puts the tip on the spindle axis at the face (setup and
+tool length through the kinematic chain: jobs.thread_origin), is added to every commanded
+position and travel check; depths, lengths, chips and the room before the face stay in
+program coordinates.
+
 Geometry (SI, external thread; an internal one mirrors x). Pass k cuts to the cumulative
 radial depth d_k. The tool moves in along the infeed line, at infeed_angle from radial:
 at depth d its tip is at x = major_radius - d and shifted d*tan(infeed_angle) along the
@@ -88,7 +94,9 @@ class ThreadVibration:
 
 @dataclass(frozen=True)
 class ThreadSpec:
-    """A thread job in SI units (m, rad, rad/s); pitch is the lead per spindle revolution."""
+    """A thread job in SI units (m, rad, rad/s) and program coordinates; pitch is the lead
+    per spindle revolution, origin the axis (x, z) that puts the tip on the spindle axis at
+    the face."""
 
     start_z: float
     end_z: float
@@ -103,10 +111,12 @@ class ThreadSpec:
     starts: int = 1
     internal: bool = False
     vibration: ThreadVibration | None = None
+    origin: tuple[float, float] = (0.0, 0.0)
 
     @classmethod
-    def from_job(cls, job: SimpleNamespace) -> ThreadSpec:
-        """From a parsed job (cnc_msgs_py.job.parse_job, already SI)."""
+    def from_job(cls, job: SimpleNamespace, origin: tuple[float, float] = (0.0, 0.0)) -> ThreadSpec:
+        """From a parsed job (cnc_msgs_py.job.parse_job, already SI) and the axis position
+        of its program origin."""
         t, vib = job.thread, job.vibration
         if vib is not None and vib.D is None:
             raise ThreadError(
@@ -119,6 +129,7 @@ class ThreadSpec:
             depths=tuple(t.depths) if t.depths else None, infeed_angle=t.infeed_angle,
             spring_passes=t.spring_passes, starts=t.starts, internal=t.internal,
             vibration=None if vib is None else ThreadVibration(vib.D, vib.Q, vib.phase_shift, vib.D_step),
+            origin=origin,
         )
 
     @property
@@ -289,19 +300,20 @@ def _check_room(spec: ThreadSpec, machine: Machine) -> None:
             f"lead speed {to_mm(spec.lead_speed):.4g} mm/s: needs {_mm(need)} (ramp and flank offset)"
         )
     x_axis, z_axis = machine.axis("x"), machine.axis("z")
+    x0, z0 = spec.origin
     x_clear = spec.major_radius - spec.radial * RETRACT_CLEARANCE
     x_deep = spec.major_radius + spec.radial * spec.depth
-    for x in (x_clear, x_deep):
+    for x in (x0 + x_clear, x0 + x_deep):
         if not x_axis.within_travel(x):
             raise ThreadError(
-                f"thread.major_radius: the tool would reach x = {_mm(x)}, outside the x axis travel "
+                f"thread.major_radius: the tool would reach axis x = {_mm(x)}, outside the x axis travel "
                 f"{_mm(x_axis.min)}..{_mm(x_axis.max)}"
             )
     overrun = spec.end_z + spec.direction * (travel + spec.pitch)
-    for field, z in (("thread.start_z", spec.start_z), ("thread.end_z", overrun)):
+    for field, z in (("thread.start_z", z0 + spec.start_z), ("thread.end_z", z0 + overrun)):
         if not z_axis.within_travel(z):
             raise ThreadError(
-                f"{field}: the tool would reach z = {_mm(z)}, outside the z axis travel "
+                f"{field}: the tool would reach axis z = {_mm(z)}, outside the z axis travel "
                 f"{_mm(z_axis.min)}..{_mm(z_axis.max)}"
             )
 
@@ -498,10 +510,11 @@ class PassMotion:
             self._compensate(drive)
 
     def _position(self, depth: np.ndarray | float, psi: np.ndarray | float) -> np.ndarray:
+        """Axis x and z at a depth and helix angle."""
         spec = self.spec
         x = spec.major_radius + spec.radial * depth
         z = spec.start_z + spec.direction * (spec.pitch * psi / TWO_PI + depth * math.tan(spec.infeed_angle))
-        return np.array([x, z])
+        return np.array([x + spec.origin[0], z + spec.origin[1]])
 
     def helix(self, t: np.ndarray) -> np.ndarray:
         """(3, len(t), 2): x and z on the helix with the vibration, at local times t."""
@@ -552,7 +565,7 @@ class PassMotion:
         retreating = np.flatnonzero(depth_rate <= 1e-12)
         t_out = float(t[retreating[0]])
         state = self._state(t_out)
-        x_clear = spec.major_radius - spec.radial * RETRACT_CLEARANCE
+        x_clear = spec.origin[0] + spec.major_radius - spec.radial * RETRACT_CLEARANCE
         retract = _reach(state[:1], np.array([[x_clear, 0.0, 0.0]]), self.machine, joints=("x",))
         z = self.machine.axis("z")
         stop = velocity_trajectory(list(state[1, :1]), list(state[1, 1:2]), list(state[1, 2:]), [0.0],
@@ -626,16 +639,17 @@ def plan_thread(builder: PlanBuilder, spec: ThreadSpec, servo_period: float = 1e
     machine = builder.machine
     check_thread(spec, machine)
     omega, s, r = spec.spindle_speed, spec.direction, spec.radial
+    x_origin, z_origin = spec.origin
     drive = DriveModel(machine, servo_period, joints=JOINTS) if compensate else None
     spindle = builder.timelines[SPINDLE]
     builder.spindle(omega)
-    builder.rapid({"x": spec.major_radius - r * RETRACT_CLEARANCE, "z": spec.start_z})
+    builder.rapid({"x": x_origin + spec.major_radius - r * RETRACT_CLEARANCE, "z": z_origin + spec.start_z})
     lead_in = round(LEAD_TIME / servo_period) * servo_period + _ramp(spec.lead_speed, machine).duration / 2
     report = []
     for cut in _passes(spec):
         for start in range(spec.starts):
-            x0 = spec.major_radius + r * cut.depth
-            z0 = spec.start_z + s * cut.depth * math.tan(spec.infeed_angle)
+            x0 = x_origin + spec.major_radius + r * cut.depth
+            z0 = z_origin + spec.start_z + s * cut.depth * math.tan(spec.infeed_angle)
             t_begin = builder.end_time(list(JOINTS))
             t_z = builder.rapid({"z": z0})  # at the clearance radius
             t_in = builder.rapid({"x": x0}, start=max(t_z, builder.end_time(["x"])))
@@ -647,7 +661,7 @@ def plan_thread(builder: PlanBuilder, spec: ThreadSpec, servo_period: float = 1e
             t_ref = t_ready + (theta_ref - spindle.position_at(t_ready)) / omega
             t0 = math.ceil((t_ref - lead_in) / servo_period - 1e-9) * servo_period
             motion = PassMotion(spec, cut, spindle.position_at(t0) - theta_ref, machine, servo_period, drive)
-            z_join = motion.ideal(np.array([motion.t_join]))[0, 0, 1]
+            z_join = motion.ideal(np.array([motion.t_join]))[0, 0, 1] - z_origin  # program z
             if s * z_join > 0.0:
                 raise ThreadError(
                     f"thread.start_z: pass {cut.index + 1} locks onto the helix at z = {_mm(z_join)}, "
@@ -670,5 +684,5 @@ def plan_thread(builder: PlanBuilder, spec: ThreadSpec, servo_period: float = 1e
             builder.event(info["t_sync"], "sync", index=cut.index, start=start,
                           spindle_phase_deg=info["spindle_phase_deg"])
             report.append(info)
-    builder.rapid({"z": spec.start_z})
+    builder.rapid({"z": z_origin + spec.start_z})
     return report

@@ -269,6 +269,20 @@ def test_tool_data_from_the_job():
     assert k.to_axes({"x": mm(10.0), "z": mm(-5.0)}) == pytest.approx({"x": mm(40.0), "z": mm(-5.0)})
 
 
+@pytest.mark.parametrize("turned", [0.0, 30.0])
+def test_lathe_tip_radius_and_z_in_program_coordinates(turned):
+    """Tool 20 mm, setup origin z -100 mm (turned about Z or not): axis x 26, z -96 mm is the
+    tip at radius 6 mm, z 4 mm; on the spindle axis at x 20 mm; at any spindle angle."""
+    k = Kinematics(load_machine("lathe"), job_setup((0.0, 0.0, -100.0), (0.0, 0.0, turned)), NS(length=mm(20.0)))
+    x, z = np.array([mm(26.0), mm(20.0), mm(30.5)]), np.array([mm(-96.0), mm(-100.0), mm(-116.0)])
+    radius, program_z = k.tip_radius_z(x, z)
+    assert radius == pytest.approx([mm(6.0), 0.0, mm(10.5)], abs=1e-15)
+    assert program_z == pytest.approx([mm(4.0), 0.0, mm(-16.0)], abs=1e-15)
+    tips, _ = k.fk_many({"x": x, "z": z, "spindle": np.array([0.3, 2.0, -4.0])})
+    assert np.hypot(tips[:, 0], tips[:, 1]) == pytest.approx(radius, abs=1e-15)
+    assert tips[:, 2] == pytest.approx(program_z, abs=1e-15)
+
+
 # --- the existing mill3 / lathe behaviour ----------------------------------------------------
 
 @pytest.mark.parametrize("layout,point", [("mill3", {"x": 0.1, "y": -0.05, "z": 0.02}), ("lathe", {"x": 0.03, "z": -0.1}),

@@ -7,13 +7,17 @@ Example job: 600 rpm, start_z 4, end_z -16, major_radius 6, pitch 1.75, depth 1.
 """
 import dataclasses
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from cnc_msgs_py.job import parse_job
+from cnc_msgs_py.job import load_job_file, parse_job
 from cnc_msgs_py.machine import load_machine
+from cnc_msgs_py.schema import JobError
+from cnc_msgs_py.units import mm
 from cnc_planner.builder import PlanBuilder
+from cnc_planner.jobs import plan_job
 from cnc_planner.thread_cutting import (
     ThreadError, ThreadSpec, ThreadVibration, check_thread, pass_depths, plan_thread,
 )
@@ -264,3 +268,47 @@ def test_e_and_r_vibration_is_no_thread_vibration():
     job = dict(JOB, vibration={"E": 2.0, "R": 1.0, "Q": 1.2})
     with pytest.raises(ThreadError, match=r"^vibration\.E: "):
         ThreadSpec.from_job(parse_job(job))
+
+
+# -- setup and tool length: the thread goes through the kinematic chain ----------------------
+THREAD_M12 = load_job_file(Path(__file__).resolve().parents[3] / "config" / "jobs" / "thread_m12.yaml")
+
+
+def plan_m12(start_mm: tuple[float, float], **blocks):
+    """thread_m12.yaml with extra job blocks, planned from axis (x, z) start_mm."""
+    return plan_job(parse_job({**THREAD_M12, **blocks}), LATHE, {"x": mm(start_mm[0]), "z": mm(start_mm[1])})
+
+
+@pytest.mark.parametrize("turned", [0.0, 30.0])
+def test_setup_and_tool_length_shift_the_whole_cycle_on_the_axes(turned):
+    """Tool 20 mm, setup origin z -100 mm (from a start shifted alike): every x and z command
+    is the unplaced one plus (20, -100) mm, the spindle the same; turning the setup about Z
+    only turns the part on the spindle."""
+    plain = plan_m12((10.0, 10.0))
+    setup = {"origin": [0, 0, -100], "rotation_deg": [0, 0, turned]}
+    placed = plan_m12((30.0, -90.0), setup=setup, tool={"length": 20})
+    assert placed.joints == plain.joints == ("x", "z", "spindle")
+    assert placed.duration == pytest.approx(plain.duration, abs=1e-9)
+    t = np.arange(0.0, plain.duration + T / 2, T)
+    shift = placed.sample(t)[0] - plain.sample(t)[0]
+    assert np.abs(shift[:, 0] - mm(20.0)).max() < 1e-6
+    assert np.abs(shift[:, 1] - mm(-100.0)).max() < 1e-6
+    assert np.abs(shift[:, 2]).max() == 0.0
+    assert [e.name for e in placed.events] == [e.name for e in plain.events]
+    assert [e.time for e in placed.events] == pytest.approx([e.time for e in plain.events], abs=1e-9)
+
+
+@pytest.mark.parametrize("setup", [{"rotation_deg": [0, 10, 0]}, {"rotation_deg": [10, 0, 0]},
+                                   {"origin": [5, 0, 0]}, {"origin": [0, 5, 0]}])
+def test_a_setup_that_moves_the_thread_off_the_spindle_axis_is_rejected(setup):
+    with pytest.raises(JobError) as err:
+        plan_m12((10.0, 10.0), setup=setup)
+    assert err.value.field == "setup" and "spindle axis" in err.value.reason and "\n" not in str(err.value)
+
+
+def test_a_setup_beyond_the_z_travel_names_the_thread_field_and_the_axis_position():
+    """Origin z -290 mm: the pull-out past end_z (-16 mm in the program) reaches axis z -309.1 mm."""
+    with pytest.raises(JobError) as err:
+        plan_m12((10.0, 10.0), setup={"origin": [0, 0, -290]})
+    assert err.value.field == "thread.end_z"
+    assert "axis z = -309.1 mm" in err.value.reason and "-300 mm..50 mm" in err.value.reason

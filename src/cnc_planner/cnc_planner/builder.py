@@ -17,10 +17,14 @@ class PlanBuilder:
     other axes on purpose, as overlapped drilling does.
     """
 
-    def __init__(self, machine: Machine, start_position: dict[str, float] | None = None):
+    def __init__(self, machine: Machine, start_position: dict[str, float] | None = None,
+                 spindle_speed: float = 0.0):
+        """``spindle_speed``: the spindle already turns at this speed (rad/s), as when a
+        long job is planned segment by segment."""
         self.machine = machine
         start_position = start_position or {}
-        self.timelines = {j: JointTimeline(start_position.get(j, 0.0)) for j in machine.joint_names}
+        self.timelines = {j: JointTimeline(start_position.get(j, 0.0), spindle_speed if j == SPINDLE else 0.0)
+                          for j in machine.joint_names}
         self.events: list[Event] = []
         self.spindle_ready = 0.0  # feed moves wait until the spindle is at speed
 
@@ -89,9 +93,10 @@ class PlanBuilder:
         self.spindle_ready = begin + move.duration
         return self.spindle_ready
 
-    def build(self) -> Plan:
-        """The finished plan; the spindle is stopped at the end if still turning."""
-        if SPINDLE in self.timelines and abs(self.timelines[SPINDLE].end_velocity) > 0.0:
+    def build(self, stop_spindle: bool = True) -> Plan:
+        """The finished plan; the spindle is stopped at the end if still turning, unless
+        another segment of the same job follows."""
+        if stop_spindle and SPINDLE in self.timelines and abs(self.timelines[SPINDLE].end_velocity) > 0.0:
             self.spindle(0.0, start=max(self.end_time(), self.timelines[SPINDLE].end_time))
         self.events.sort(key=lambda e: e.time)
         return Plan(self.machine.joint_names, self.timelines, self.events)

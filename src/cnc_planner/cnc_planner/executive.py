@@ -1,8 +1,9 @@
 """The planner's executive: job queue, one job streaming at a time, cancel and faults.
 
 ROS-free: the node feeds it documents, cancel requests, feedback and the time, and
-publishes what it returns (statuses, events, setpoint chunks). Jobs are validated and
-planned whole when they arrive, so a bad job is rejected before anything moves.
+publishes what it returns (statuses, events, setpoint chunks). Jobs are validated
+when they arrive and their first segment planned, so a bad job is rejected before
+anything moves; long jobs plan the rest while they run (lookahead.JobPlan).
 """
 from __future__ import annotations
 
@@ -17,9 +18,10 @@ from cnc_msgs_py.machine import Machine
 from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.status import Status
 
-from .jobs import plan_job
+from .lookahead import JobPlan
+from .segments import plan_segments, segment_count
 from .streaming import NS, Chunk, SetpointStream
-from .timeline import Event, Plan
+from .timeline import Event
 
 START_MATCH = 1e-6  # m: a plan made from another position than the axes hold is redone
 REST_SPEED = 1e-4  # m/s or rad/s: feedback this slow counts as standing still (a settled
@@ -47,9 +49,11 @@ class Output:
 class _Job:
     job_id: str
     job: SimpleNamespace
-    plan: Plan
+    plan: JobPlan
     stream: SetpointStream | None = None
-    next_event: int = 0
+    passing: deque[Event] = field(default_factory=deque)  # published, not yet passed by the feedback
+    counts: dict[str, int] = field(default_factory=dict)  # events passed, by name
+    phase: str = ""  # the latest event passed
     next_status_ns: int = 0
     final: str = ""  # the state to report once the stop has run out (canceled/aborted)
     reason: str = ""
@@ -65,8 +69,12 @@ class Executive:
         self.position: dict[str, float] | None = None  # where the next plan starts
 
     def _expected_start(self) -> dict[str, float] | None:
+        """Where the next job will start, if known (else it is planned again at its start)."""
         last = self.queue[-1] if self.queue else self.active
         return last.plan.final_position() if last is not None else self.position
+
+    def _plan(self, job: SimpleNamespace, start: dict[str, float] | None) -> JobPlan:
+        return JobPlan(plan_segments(job, self.machine, start), segment_count(job), self.settings.period_ns / NS)
 
     def submit(self, text: str) -> Status:
         """A job_goal message: accepted (queued) or rejected with the field and reason."""
@@ -76,18 +84,19 @@ class Executive:
             job = parse_job(doc)
             if job.job_id in self.seen_ids:
                 raise JobError("job_id", f"'{job.job_id}' was already used in this planner's lifetime")
-            plan = plan_job(job, self.machine, self._expected_start())
+            plan = self._plan(job, self._expected_start())
         except JobError as err:
             return Status(job_id_of(doc), "rejected", reason=str(err))
         self.seen_ids.add(job.job_id)
         self.queue.append(_Job(job.job_id, job, plan))
-        return Status(job.job_id, "accepted", duration_s=plan.duration)
+        return Status(job.job_id, "accepted", duration_s=plan.expected_duration)
 
     def cancel(self, job_id: str, now_ns: int) -> list[Status]:
         """Cancel a queued job at once, or stop the running one (jerk-limited)."""
         for queued in list(self.queue):
             if queued.job_id == job_id:
                 self.queue.remove(queued)
+                queued.plan.close()
                 return [Status(job_id, "canceled", reason="canceled before it started")]
         if self.active is not None and self.active.job_id == job_id and not self.active.final:
             self._stop(now_ns, "canceled", "canceled by request")
@@ -106,6 +115,7 @@ class Executive:
             self._stop(now_ns, "aborted", reason)
             return []
         job, self.active = self.active, None
+        job.plan.close()
         self.position = None  # unknown until feedback returns
         return [Status(job.job_id, "aborted", reason=reason)]
 
@@ -145,6 +155,8 @@ class Executive:
         if stream.done and now_ns >= stream.end_ns:
             self._events_until(job, stream.end_ns, out)
             self.position = dict(zip(stream.plan.joints, out_last_position(stream)))
+            if not job.final and job.plan.error:  # a later segment could not be planned
+                job.final, job.reason = "aborted", f"stopped where planning did: {job.plan.error}"
             state = job.final or "succeeded"
             out.statuses.append(Status(job.job_id, state, reason=job.reason, progress=1.0,
                                        elapsed_s=(stream.end_ns - stream.start_ns) / NS,
@@ -162,8 +174,9 @@ class Executive:
         job = self.queue[0]
         planned_from = job.plan.start_position()
         if any(abs(planned_from[j] - self.position[j]) > START_MATCH for j in self.machine.linear_axes):
+            job.plan.close()
             try:
-                job.plan = plan_job(job.job, self.machine, self.position)
+                job.plan = self._plan(job.job, self.position)
             except JobError as err:
                 self.queue.popleft()
                 out.statuses.append(Status(job.job_id, "aborted", reason=f"cannot start from here: {err}"))
@@ -176,21 +189,21 @@ class Executive:
         self.active = job
 
     def _running(self, job: _Job, now_ns: int) -> Status:
-        stream = job.stream
-        elapsed = max(0.0, stream.plan_time(now_ns))
-        events = job.plan.events
-        phase = next((e.name for e in reversed(events[: job.next_event]) if e.time <= elapsed), "")
-        return Status(job.job_id, "running", progress=min(1.0, elapsed / max(job.plan.duration, 1e-9)),
-                      phase=phase, elapsed_s=elapsed, duration_s=job.plan.duration,
-                      detail=_counts(events, elapsed))
+        elapsed = max(0.0, job.stream.plan_time(now_ns))
+        while job.passing and job.passing[0].time <= elapsed:
+            event = job.passing.popleft()
+            job.counts[event.name] = job.counts.get(event.name, 0) + 1
+            job.phase = event.name
+        duration = job.plan.expected_duration
+        return Status(job.job_id, "running", progress=min(1.0, elapsed / max(duration, 1e-9)),
+                      phase=job.phase, elapsed_s=elapsed, duration_s=duration, detail=dict(job.counts))
 
     def _events_until(self, job: _Job, t_ns: int, out: Output) -> None:
-        events = job.plan.events
-        while job.next_event < len(events) and job.stream.start_ns + events[job.next_event].time * NS <= t_ns:
-            e = events[job.next_event]
+        """Publish the job's events up to ``t_ns`` (none once it is stopping)."""
+        for event in job.plan.pop_events(job.stream.plan_time(t_ns)):
             if not job.stream.stopping:
-                out.events.append(_event_doc(job.job_id, job.stream.start_ns, e))
-            job.next_event += 1
+                out.events.append(_event_doc(job.job_id, job.stream.start_ns, event))
+                job.passing.append(event)
 
 
 def out_last_position(stream: SetpointStream) -> np.ndarray:
@@ -201,13 +214,3 @@ def out_last_position(stream: SetpointStream) -> np.ndarray:
 def _event_doc(job_id: str, start_ns: int, event: Event) -> dict:
     return {"job_id": job_id, "name": event.name, "stamp_ns": int(start_ns + round(event.time * NS)),
             "plan_time_s": event.time, **event.data}
-
-
-def _counts(events: list[Event], elapsed: float) -> dict:
-    """How many of each phase mark have passed: holes done, passes done, moves done."""
-    counts: dict[str, int] = {}
-    for e in events:
-        if e.time > elapsed:
-            break
-        counts[e.name] = counts.get(e.name, 0) + 1
-    return counts

@@ -13,6 +13,7 @@ import numpy as np
 from cnc_msgs_py.machine import Machine
 
 from .motion import axis_limits, velocity_change
+from .lookahead import JobPlan
 from .timeline import JointTimeline, Piece, Plan
 
 NS = 1_000_000_000
@@ -36,20 +37,33 @@ class Chunk:
 
 
 class SetpointStream:
-    """Serves a plan as chunks, starting at absolute time ``start_ns``."""
+    """Serves a job's plan as chunks, starting at absolute time ``start_ns``.
 
-    def __init__(self, plan: Plan, start_ns: int, period_ns: int, chunk_points: int):
-        self.plan = plan
+    Every chunk but the job's last is full: when planning has not reached the chunk's
+    end yet, serving waits for it (see lookahead.JobPlan).
+    """
+
+    def __init__(self, plan: JobPlan | Plan, start_ns: int, period_ns: int, chunk_points: int):
+        self.plan = plan if isinstance(plan, JobPlan) else JobPlan.of(plan, period_ns / NS)
         self.start_ns = start_ns
         self.period_ns = period_ns
         self.chunk_points = chunk_points
         self.next_index = 0  # grid index (from start_ns) of the next point to serve
-        self.last_index = int(np.ceil(plan.duration * NS / period_ns))
+        self._stop_index: int | None = None
         self.stopping = False
 
     @property
+    def last_index(self) -> int | None:
+        """Grid index of the job's last point; None while the plan is still growing."""
+        if self._stop_index is not None:
+            return self._stop_index
+        return self._index(self.plan.duration) if self.plan.complete else None
+
+    @property
     def end_ns(self) -> int:
-        return self.start_ns + self.last_index * self.period_ns
+        """When the job ends (the planned part's end while planning goes on)."""
+        last = self.last_index
+        return self.start_ns + (self._index(self.plan.duration) if last is None else last) * self.period_ns
 
     @property
     def served_until_ns(self) -> int:
@@ -58,19 +72,27 @@ class SetpointStream:
 
     @property
     def done(self) -> bool:
-        return self.next_index > self.last_index
+        last = self.last_index
+        return last is not None and self.next_index > last
 
     def plan_time(self, t_ns: int) -> float:
         return (t_ns - self.start_ns) / NS
+
+    def _index(self, t: float) -> int:
+        return int(np.ceil(t * NS / self.period_ns))
 
     def next_chunk(self) -> Chunk | None:
         if self.done:
             return None
         first = self.next_index
-        last = min(first + self.chunk_points - 1, self.last_index)
+        last = first + self.chunk_points - 1
+        self.plan.wait_until(last * self.period_ns / NS)
+        if self.last_index is not None:
+            last = min(last, self.last_index)
         ts = np.arange(first, last + 1) * (self.period_ns / NS)
         p, v, a = self.plan.sample(ts)
         self.next_index = last + 1
+        self.plan.streamed(float(ts[-1]))
         if self.done:  # the last point of a job is at rest
             v[-1] = 0.0
             a[-1] = 0.0
@@ -82,9 +104,11 @@ class SetpointStream:
         Returns the grid time the stop starts at; the next chunk served starts there, so
         the bridge replaces whatever it had buffered beyond it.
         """
-        index = max(0, min(int(np.ceil((t_ns - self.start_ns) / self.period_ns)), self.last_index))
+        bound = self.last_index if self.last_index is not None else self._index(self.plan.duration)
+        index = max(0, min(int(np.ceil((t_ns - self.start_ns) / self.period_ns)), bound))
         t = index * self.period_ns / NS
         p, v, a = (x[0] for x in self.plan.sample(np.array([t])))
+        self.plan.close()
         joints = self.plan.joints
         stop = velocity_change(list(p), list(v), list(a), [0.0] * len(joints),
                                [axis_limits(machine.axes[j]) for j in joints])
@@ -92,22 +116,10 @@ class SetpointStream:
         timelines = {}
         for dof, joint in enumerate(joints):
             timeline = JointTimeline(float(p[dof]))
-            timeline.add(Piece(0.0, stop.duration, stop.sampler(dof)), float(end[dof]))
+            timeline.add(Piece(t, stop.duration, stop.sampler(dof)), float(end[dof]))
             timelines[joint] = timeline
-        self.plan = _Shifted(Plan(joints, timelines, []), t)
+        self.plan = JobPlan.of(Plan(joints, timelines, []), self.period_ns / NS)
         self.next_index = index
-        self.last_index = index + int(np.ceil(stop.duration * NS / self.period_ns))
+        self._stop_index = index + int(np.ceil(stop.duration * NS / self.period_ns))
         self.stopping = True
         return self.start_ns + index * self.period_ns
-
-
-class _Shifted:
-    """A plan that begins at plan time ``offset`` of the stream."""
-
-    def __init__(self, plan: Plan, offset: float):
-        self.plan = plan
-        self.offset = offset
-        self.joints = plan.joints
-
-    def sample(self, ts: np.ndarray):
-        return self.plan.sample(np.maximum(ts - self.offset, 0.0))

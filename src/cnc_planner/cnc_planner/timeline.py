@@ -41,10 +41,10 @@ class Event:
 class JointTimeline:
     """One joint's motion: pieces in time order, coasting between them."""
 
-    def __init__(self, position: float) -> None:
+    def __init__(self, position: float, velocity: float = 0.0) -> None:
         self.pieces: list[Piece] = []
         self._starts: list[float] = []
-        self._coast: list[tuple[float, float, float]] = [(0.0, position, 0.0)]  # (t, p, v)
+        self._coast: list[tuple[float, float, float]] = [(0.0, position, velocity)]  # (t, p, v)
 
     @property
     def end_time(self) -> float:

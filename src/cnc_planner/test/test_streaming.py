@@ -9,14 +9,17 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from cnc_msgs_py.job import load_job_file
 from cnc_msgs_py.machine import SPINDLE, load_machine
 from cnc_msgs_py.status import Status
 from cnc_planner.builder import PlanBuilder
 from cnc_planner.executive import Executive, Settings
+from cnc_planner.segments import SEGMENT_HOLES
 from cnc_planner.streaming import NS, SetpointStream
 from cnc_servo_bridge.setpoints import SetpointBuffer
 
@@ -467,3 +470,35 @@ def test_abort_with_stop_runs_a_stop_then_reports_aborted():
     t, p, v, _ = stitched([c for _, c, _ in sim.chunks])
     assert_within_limits(p, 1e-3)
     assert np.all(v[-1] == 0.0) and p[-1, 0] < 0.030
+
+
+# --- a long job, planned segment by segment while it streams --------------------------------
+def plate_doc(holes: int) -> dict:
+    """drill_row.yaml with ``holes`` holes on a 5 mm grid."""
+    doc = load_job_file(Path(__file__).resolve().parents[3] / "config" / "jobs" / "drill_row.yaml")
+    doc["job_id"] = f"plate-{holes}"
+    doc["drill"]["holes"] = [[-50 + 5 * (i % 20), -50 + 5 * (i // 20)] for i in range(holes)]
+    return doc
+
+
+def test_the_executive_streams_a_long_job_and_reports_holes_and_progress():
+    sim = Sim()
+    doc = plate_doc(SEGMENT_HOLES + 10)
+    status = sim.submit(json.dumps(doc))
+    assert status.state == "accepted" and status.duration_s > 0
+    final = sim.run_job(doc["job_id"], limit_s=120)
+    assert final.state == "succeeded"
+    chunks = [c for _, c, _ in sim.chunks]
+    for a, b in zip(chunks, chunks[1:]):
+        assert b.stamp_ns == a.end_ns + a.period_ns  # contiguous: nothing lost, repeated or overlapping
+    assert [e["hole"] for e in sim.events if e["name"] == "S1"] == list(range(SEGMENT_HOLES + 10))
+    running = [s for _, s in sim.statuses if s.state == "running"]
+    progress = [s.progress for s in running]
+    assert progress == sorted(progress) and progress[-1] > 0.95
+    assert running[-1].detail["S3"] >= SEGMENT_HOLES + 9
+    _, p, _, _ = stitched(chunks)
+    dt = MS / NS  # within velocity and acceleration (the X/Y compensation may exceed the jerk, see drilling.py)
+    for k, joint in enumerate(MILL.joint_names):
+        assert np.abs(np.diff(p[:, k])).max() / dt <= MILL.axes[joint].max_velocity * (1 + 1e-6), joint
+        assert np.abs(np.diff(p[:, k], 2)).max() / dt**2 <= MILL.axes[joint].max_acceleration * (1 + 1e-6), joint
+

@@ -86,10 +86,11 @@ def planning_rows() -> tuple[list[tuple], list[str]]:
     return rows, notes
 
 
-def vm_hwm_kib(pid: int) -> int:
+def vm_hwm_kib(pid: int, field: str = "VmHWM") -> int:
+    """A memory figure of a process from /proc (VmHWM: peak RSS; VmRSS: RSS now), KiB."""
     try:
         for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-            if line.startswith("VmHWM:"):
+            if line.startswith(f"{field}:"):
                 return int(line.split()[1])
     except OSError:
         pass

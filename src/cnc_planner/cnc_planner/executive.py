@@ -67,6 +67,7 @@ class Executive:
         self.active: _Job | None = None
         self.seen_ids: set[str] = set()
         self.position: dict[str, float] | None = None  # where the next plan starts
+        self.cancel_early: deque[str] = deque(maxlen=100)  # canceled while being prepared
 
     def _expected_start(self) -> dict[str, float] | None:
         """Where the next job will start, if known (else it is planned again at its start)."""
@@ -78,21 +79,49 @@ class Executive:
 
     def submit(self, text: str) -> Status:
         """A job_goal message: accepted (queued) or rejected with the field and reason."""
+        return self.admit(self.prepare(text))
+
+    def prepare(self, text: str) -> _Job | Status:
+        """The slow half of submit, safe on another thread than the executive's: the job
+        validated and its first segment planned, or its rejection."""
         doc = None
         try:
             doc = decode_job(text)
             job = parse_job(doc)
-            if job.job_id in self.seen_ids:
-                raise JobError("job_id", f"'{job.job_id}' was already used in this planner's lifetime")
-            plan = self._plan(job, self._expected_start())
+            self._check_new(job.job_id)
+            return _Job(job.job_id, job, self._plan(job, self._expected_start()))
         except JobError as err:
             return Status(job_id_of(doc), "rejected", reason=str(err))
-        self.seen_ids.add(job.job_id)
-        self.queue.append(_Job(job.job_id, job, plan))
-        return Status(job.job_id, "accepted", duration_s=plan.expected_duration)
 
-    def cancel(self, job_id: str, now_ns: int) -> list[Status]:
-        """Cancel a queued job at once, or stop the running one (jerk-limited)."""
+    def admit(self, prepared: _Job | Status) -> Status:
+        """The other half: queue a prepared job (in the order goals arrived)."""
+        if isinstance(prepared, Status):
+            return prepared
+        if prepared.job_id in self.cancel_early:
+            self.cancel_early.remove(prepared.job_id)
+            self.seen_ids.add(prepared.job_id)
+            prepared.plan.close()
+            return Status(prepared.job_id, "canceled", reason="canceled before it started")
+        try:
+            self._check_new(prepared.job_id)  # two goals with one id may be prepared at once
+        except JobError as err:
+            prepared.plan.close()
+            return Status(prepared.job_id, "rejected", reason=str(err))
+        self.seen_ids.add(prepared.job_id)
+        self.queue.append(prepared)
+        return Status(prepared.job_id, "accepted", duration_s=prepared.plan.expected_duration)
+
+    def _check_new(self, job_id: str) -> None:
+        if job_id in self.seen_ids:
+            raise JobError("job_id", f"'{job_id}' was already used in this planner's lifetime")
+
+    def cancel(self, job_id: str, now_ns: int, preparing: bool = False) -> list[Status]:
+        """Cancel a queued job at once, or stop the running one (jerk-limited).
+
+        ``preparing``: goals are still being prepared, and the job may be one of them:
+        it is then canceled as it is admitted."""
+        if preparing and job_id not in self.seen_ids:
+            self.cancel_early.append(job_id)
         for queued in list(self.queue):
             if queued.job_id == job_id:
                 self.queue.remove(queued)

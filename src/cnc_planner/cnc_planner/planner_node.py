@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import json
 import sys
+from collections import deque
+from concurrent.futures import Future, ThreadPoolExecutor
 
 from builtin_interfaces.msg import Duration, Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -60,6 +62,11 @@ class PlannerNode(Node):
         self.create_timer(0.1, self.watch_feedback, clock=self.wall)
         self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS)
         self.create_timer(1.0, self.heartbeat, clock=self.wall)
+        # Goals are validated and planned on a thread of their own, so that a running job's
+        # stream never waits for the next job's planning; they are admitted in arrival order.
+        self.intake = ThreadPoolExecutor(max_workers=1, thread_name_prefix="cnc_planner_intake")
+        self.preparing: deque[Future] = deque()
+        self.create_timer(0.02, self.admit_prepared, clock=self.wall)
         self.get_logger().info(f"planning for machine '{machine.name}' joints {self.joints}")
 
     def now_ns(self) -> int:
@@ -82,11 +89,15 @@ class PlannerNode(Node):
         self.status_pub.publish(String(data=status.encode()))
 
     def on_goal(self, msg: String) -> None:
-        # Planning may take a while: the job starts on the next (fresh) feedback, not now.
-        self.publish_status(self.executive.submit(msg.data))
+        self.preparing.append(self.intake.submit(self.executive.prepare, msg.data))
+
+    def admit_prepared(self) -> None:
+        while self.preparing and self.preparing[0].done():
+            self.publish_status(self.executive.admit(self.preparing.popleft().result()))
 
     def on_cancel(self, msg: String) -> None:
-        for status in self.executive.cancel(decode_cancel(msg.data), self.now_ns()):
+        self.admit_prepared()
+        for status in self.executive.cancel(decode_cancel(msg.data), self.now_ns(), preparing=bool(self.preparing)):
             self.publish_status(status)
         self.publish(self.executive.tick(self.now_ns()))
 
@@ -95,6 +106,7 @@ class PlannerNode(Node):
         self.executive.feedback(dict(zip(msg.name, msg.position)), dict(zip(msg.name, msg.velocity)))
         # Not max(): a restarted bridge starts its clock again, and its time is the one that counts.
         self.latest_feedback_ns = msg.header.stamp.sec * NS + msg.header.stamp.nanosec
+        self.admit_prepared()
         if self.trajectory_pub.get_subscription_count() == 0:
             return  # no bridge listening (yet): setpoints would be lost, so nothing starts
         self.publish(self.executive.tick(self.latest_feedback_ns))
@@ -123,6 +135,10 @@ class PlannerNode(Node):
         msg = DiagnosticArray(status=[status])
         msg.header.stamp = Time(sec=self.latest_feedback_ns // NS, nanosec=self.latest_feedback_ns % NS)
         self.diag_pub.publish(msg)
+
+    def destroy_node(self) -> None:
+        self.intake.shutdown(wait=False, cancel_futures=True)
+        super().destroy_node()
 
     def watch_feedback(self) -> None:
         silent = (self.wall.now() - self.last_feedback_wall).nanoseconds / NS

@@ -502,3 +502,20 @@ def test_the_executive_streams_a_long_job_and_reports_holes_and_progress():
         assert np.abs(np.diff(p[:, k])).max() / dt <= MILL.axes[joint].max_velocity * (1 + 1e-6), joint
         assert np.abs(np.diff(p[:, k], 2)).max() / dt**2 <= MILL.axes[joint].max_acceleration * (1 + 1e-6), joint
 
+
+
+# --- goals prepared off the executive's thread ----------------------------------------------
+def test_goals_prepared_at_once_are_admitted_in_order_and_one_id_only_once():
+    ex = Executive(MILL)
+    first, again, other = (ex.prepare(move_job(i, DEMO)) for i in ("a", "a", "b"))
+    assert [ex.admit(p).state for p in (first, again, other)] == ["accepted", "rejected", "accepted"]
+    assert [job.job_id for job in ex.queue] == ["a", "b"]
+
+
+def test_a_cancel_that_overtakes_its_goal_cancels_it_as_it_is_admitted():
+    ex = Executive(MILL)
+    prepared = ex.prepare(move_job("late", DEMO))
+    assert ex.cancel("late", 0, preparing=True) == []
+    status = ex.admit(prepared)
+    assert (status.state, status.reason) == ("canceled", "canceled before it started") and not ex.queue
+    assert ex.cancel("never-sent", 0) == [] and "never-sent" not in ex.cancel_early  # nothing in preparation

@@ -13,10 +13,21 @@ import numpy as np
 from cnc_msgs_py.units import to_mm
 
 
-def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Start indices and end indices (exclusive) of the True runs of a boolean array."""
+def _runs(mask: np.ndarray, t: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Start indices and end indices (exclusive) of the True runs of a boolean array.
+
+    With sample times ``t``, a run also ends at a gap in them (a recording that lost
+    samples): what happened in the gap is unknown, e.g. the tip may have risen above R
+    and gone down into the next hole, so two visits must not be merged across it.
+    """
     edges = np.diff(np.concatenate(([0], mask.astype(np.int8), [0])))
-    return np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
+    starts, ends = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
+    if t is None or len(t) < 3:
+        return starts, ends
+    step = np.diff(t)
+    after_gap = np.nonzero(step > 1.5 * np.median(step))[0] + 1
+    split = after_gap[mask[after_gap] & mask[after_gap - 1]]
+    return np.sort(np.concatenate([starts, split])), np.sort(np.concatenate([ends, split]))
 
 
 def _cross(t: np.ndarray, f: np.ndarray, k: int, level: float) -> float:
@@ -59,7 +70,7 @@ def analyze_drilling(
     t, x, y, z = (np.asarray(a, dtype=float) for a in (t, x, y, z))
     h = np.asarray(holes, dtype=float).reshape(-1, 2)
     mask = z < r_z
-    starts, ends = _runs(mask)
+    starts, ends = _runs(mask, t)
     below = np.nonzero(mask)[0]
     visit = np.searchsorted(starts, below, side="right") - 1
     # The hole of each visit: nearest to X/Y at the visit's deepest sample.

@@ -76,3 +76,14 @@ def test_a_million_samples_in_well_under_a_second():
     assert time.perf_counter() - begin < 1.5
     assert result["safety_violations"] == 0
     assert all(hole["r_down_s"] is not None for hole in result["holes"])
+
+
+def test_a_gap_in_the_recording_does_not_merge_two_holes_into_one_visit():
+    """Samples lost from 3.0 to 6.0 s hide the rise out of A and the descent into B: the
+    samples before the gap are A's, those after it B's, and none is off its hole."""
+    x, y, z = trajectory(3.8)
+    kept = (T < 3.0) | (T > 6.0)
+    result = analyze_drilling(T[kept], x[kept], y[kept], z[kept], HOLES, R, TOL)
+    a, b = result["holes"]
+    assert result["safety_violations"] == 0
+    assert a["r_down_s"] == pytest.approx(1.5) and b["r_up_s"] == pytest.approx(7.5)

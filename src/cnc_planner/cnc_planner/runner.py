@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Callable
 
 import rclpy
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from std_msgs.msg import String
@@ -92,6 +93,7 @@ class Recorder(Node):
         super().__init__("cnc_run_recorder", namespace=namespace)
         self.bag = bag
         self.statuses: list[dict] = []
+        self.finals: dict[str, dict] = {}  # job_id -> its final status (looked up per message)
         self.sim_ns = 0
         self.feedback_ns = 0  # stamp of the last joint_states recorded
         self.planner_heartbeats = 0  # planner diagnostics received (it is up and talking)
@@ -109,7 +111,10 @@ class Recorder(Node):
             # Bag time: the machine's time (sim time, or the wall clock in real-time mode).
             self.bag.write(name, max(self.sim_ns, self.feedback_ns), data)
             if topic == "job_status":
-                self.statuses.append(json.loads(deserialize_message(data, String).data))
+                status = json.loads(deserialize_message(data, String).data)
+                self.statuses.append(status)
+                if status["state"] in FINAL_STATES:
+                    self.finals.setdefault(status["job_id"], status)
             elif topic == "/diagnostics":
                 msg = deserialize_message(data, message_class(RECORDED["/diagnostics"]))
                 self.planner_heartbeats += any(s.name.startswith("cnc_planner") for s in msg.status)
@@ -143,6 +148,11 @@ class Session:
         self.bag = BagWriter(bag_dir, {topic_name(t, namespace): m for t, m in RECORDED.items()})
         rclpy.init()
         self.recorder = Recorder(self.bag, namespace)
+        # One executor for the whole session: rclpy.spin_once(node) adds and removes the node
+        # on every call, rebuilding the wait set for each message, which cannot keep up
+        # with 1 kHz feedback from a simulation running faster than real time.
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(self.recorder)
         self.cancel_pub = self.recorder.create_publisher(String, topics.JOB_CANCEL, qos.JOB_CANCEL)
         self.fault_pub = self.recorder.create_publisher(String, topics.INJECT_FAULT, qos.INJECT_FAULT)
         self._shown = 0
@@ -182,7 +192,7 @@ class Session:
         self.fault_pub.publish(String(data=json.dumps({"joint": joint, "offset": offset})))
 
     def final_status(self, job_id: str) -> dict | None:
-        return next((s for s in self.recorder.statuses if s["job_id"] == job_id and s["state"] in FINAL_STATES), None)
+        return self.recorder.finals.get(job_id)
 
     def wait(self, job_id: str, timeout: float) -> dict:
         """Spin until the job is final; returns its final status document."""
@@ -204,13 +214,14 @@ class Session:
             dead = [name for name, p in self.procs.items() if p.poll() is not None]
             if dead:
                 raise RunError(f"{what}: the {dead[0]} exited with code {self.procs[dead[0]].returncode}")
-            rclpy.spin_once(self.recorder, timeout_sec=0.05)
+            self.executor.spin_once(timeout_sec=0.05)
             if self.progress is not None:
                 for status in self.recorder.statuses[self._shown:]:
                     self.progress(status)
                 self._shown = len(self.recorder.statuses)
 
     def close(self) -> None:
+        self.executor.remove_node(self.recorder)
         self.recorder.destroy_node()
         rclpy.try_shutdown()
         for proc in self.procs.values():

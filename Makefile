@@ -9,7 +9,7 @@ STAMP   := $(VENV)/.installed
 DEMO_JOB ?= config/jobs/drill_row.yaml
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 
-.PHONY: setup browser demo cell-demo test bench bench-peer clean
+.PHONY: setup browser demo cell-demo test bench bench-peer soak clean
 
 setup: $(STAMP) browser
 
@@ -44,6 +44,11 @@ bench: setup
 # runs it as an unprivileged user): not part of `make test`; about 6 minutes.
 bench-peer: setup
 	$(PY) bench/peer/run.py
+
+# A 10,000-hole plate and a 1-hour raster streamed over topics and checked from their
+# recordings: not part of `make bench`; about an hour on 2 CPUs.
+soak: setup
+	$(PY) bench/soak.py
 
 clean:
 	rm -rf $(VENV) runs build install log

@@ -16,6 +16,7 @@ import pytest
 
 from cnc_msgs_py.job import load_job_file
 from cnc_msgs_py.machine import SPINDLE, load_machine
+from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.status import Status
 from cnc_planner.builder import PlanBuilder
 from cnc_planner.executive import Executive, Settings
@@ -519,3 +520,24 @@ def test_a_cancel_that_overtakes_its_goal_cancels_it_as_it_is_admitted():
     status = ex.admit(prepared)
     assert (status.state, status.reason) == ("canceled", "canceled before it started") and not ex.queue
     assert ex.cancel("never-sent", 0) == [] and "never-sent" not in ex.cancel_early  # nothing in preparation
+
+
+def test_a_job_whose_later_segment_cannot_be_planned_ends_aborted_at_rest(monkeypatch):
+    import cnc_planner.executive as executive
+    real = executive.plan_segments
+
+    def first_only(job, machine, start=None):
+        segments = real(job, machine, start)
+        yield next(segments)
+        raise JobError("drill", "no safe timing found against the servo lag")
+
+    monkeypatch.setattr(executive, "plan_segments", first_only)
+    sim = Sim()
+    doc = plate_doc(SEGMENT_HOLES + 10)
+    assert sim.submit(json.dumps(doc)).state == "accepted"
+    final = sim.run_job(doc["job_id"], limit_s=120)
+    assert (final.state, final.reason) == ("aborted", "stopped where planning did: drill: no safe timing found "
+                                                      "against the servo lag")
+    last = sim.chunks[-1][1]
+    assert np.all(last.velocities[-1] == 0.0) and np.all(last.accelerations[-1] == 0.0)
+    assert [e["hole"] for e in sim.events if e["name"] == "S1"] == list(range(SEGMENT_HOLES))

@@ -4,7 +4,6 @@ feedback stays safe across drill joins, bad jobs are still rejected whole, and a
 segment that cannot be planned ends the job at rest."""
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np

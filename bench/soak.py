@@ -10,7 +10,8 @@ time, every topic recorded to MCAP), then the recording is checked:
 - peak RSS (VmHWM) of the planner and bridge processes, and their RSS at 10 %, 50 % and
   100 % of the job, to show it does not grow with the job.
 Run from the workspace root:  python bench/soak.py   (about 45 minutes on 2 CPUs;
-`--quick` runs both jobs cut to a tenth). Writes bench/results/soak.txt.
+`--quick` runs both jobs cut to a tenth, `--only plate|raster` one of them). Writes
+bench/results/soak.txt (soak_<options>.txt for the variants).
 """
 from __future__ import annotations
 
@@ -56,16 +57,6 @@ def raster_doc(lines: int) -> dict:
             "spindle_rpm": 8000, "move": moves}
 
 
-def vm_rss_kib(pid: int) -> int:
-    try:
-        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1])
-    except OSError:
-        pass
-    return 0
-
-
 def run(doc: dict, out: Path) -> dict:
     """The job through both nodes, recorded; node memory polled along the way."""
     from cnc_planner.runner import Session, local_dds_env
@@ -81,7 +72,7 @@ def run(doc: dict, out: Path) -> dict:
         progress = (status or {}).get("progress", 0.0) or 0.0
         for mark in (10, 50, 100):
             if mark not in rss_at and progress * 100 >= mark - 0.5:
-                rss_at[mark] = {n: vm_rss_kib(p.pid) for n, p in procs.items()}
+                rss_at[mark] = {n: vm_hwm_kib(p.pid, "VmRSS") for n, p in procs.items()}
         if progress >= last["progress"] + 0.05:
             last["progress"] = progress
             print(f"  {doc['job_id']}: {progress * 100:.0f} %  ({status.get('detail')})", flush=True)
@@ -145,15 +136,20 @@ def drill_safety(bag: Path, doc: dict) -> dict:
     run = read_run(bag)
     x, y, z = (run.feedback[:, run.column(j)] for j in ("x", "y", "z"))
     result = analyze_drilling(run.feedback_t, x, y, z, cycle.holes, cycle.r_z, cycle.xy_tolerance, cycle.surface_z)
+    steps = np.diff(run.feedback_t)
     return {"holes": len(result["holes"]), "violations": result["safety_violations"],
-            "feedback_samples": len(run.feedback_t)}
+            "feedback_samples": len(run.feedback_t),
+            "feedback_lost": int(np.sum(np.round(steps / (PERIOD_NS / 1e9)) - 1)),
+            "longest_gap_ms": float(steps.max() * 1e3) if len(steps) else 0.0}
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="both jobs cut to a tenth (a smoke run)")
+    parser.add_argument("--only", choices=("plate", "raster"), help="run one of the two jobs")
     args = parser.parse_args()
     jobs = [plate_doc(32 if args.quick else 100), raster_doc(88 if args.quick else 880)]
+    jobs = [doc for doc in jobs if args.only is None or doc["job_id"].startswith(args.only)]
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for doc in jobs:
@@ -167,7 +163,8 @@ def main() -> int:
             rows.append((doc, result))
     text = table(rows, args.quick)
     print(text)
-    write_result("soak_quick.txt" if args.quick else "soak.txt", text)
+    name = "soak" + ("_quick" if args.quick else "") + (f"_{args.only}" if args.only else "")
+    write_result(f"{name}.txt", text)
     return 0
 
 
@@ -193,8 +190,9 @@ def table(rows: list[tuple[dict, dict]], quick: bool) -> str:
         lines.append(f"{doc['job_id']}: last progress {c['last_progress']:.3f}, counts {c['detail']}")
         if "safety" in r:
             s = r["safety"]
-            lines.append(f"{doc['job_id']}: {s['holes']} holes judged on {s['feedback_samples']} feedback samples, "
-                         f"{s['violations']} safety violations")
+            lines.append(f"{doc['job_id']}: {s['holes']} holes judged on {s['feedback_samples']} recorded feedback "
+                         f"samples ({s['feedback_lost']} missing from the recording, longest gap "
+                         f"{s['longest_gap_ms']:.0f} ms): {s['violations']} samples below R with X/Y off the hole")
     lines += ["", NOTES]
     return "\n".join(lines)
 

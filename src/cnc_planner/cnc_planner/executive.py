@@ -54,6 +54,7 @@ class _Job:
     passing: deque[Event] = field(default_factory=deque)  # published, not yet passed by the feedback
     counts: dict[str, int] = field(default_factory=dict)  # events passed, by name
     phase: str = ""  # the latest event passed
+    progress: float = 0.0  # reported so far: never goes back as the duration estimate moves
     next_status_ns: int = 0
     final: str = ""  # the state to report once the stop has run out (canceled/aborted)
     reason: str = ""
@@ -224,7 +225,8 @@ class Executive:
             job.counts[event.name] = job.counts.get(event.name, 0) + 1
             job.phase = event.name
         duration = job.plan.expected_duration
-        return Status(job.job_id, "running", progress=min(1.0, elapsed / max(duration, 1e-9)),
+        job.progress = max(job.progress, min(1.0, elapsed / max(duration, 1e-9)))
+        return Status(job.job_id, "running", progress=job.progress,
                       phase=job.phase, elapsed_s=elapsed, duration_s=duration, detail=dict(job.counts))
 
     def _events_until(self, job: _Job, t_ns: int, out: Output) -> None:

@@ -208,7 +208,7 @@ NOTES = """\
 Notes ({cpus} CPUs, shared with other work; wall times vary with the load).
 x real time: planned machine time / wall time to plan (or, in (b), to run).
 (b) machine s: the bridge's sim time from submitting the job to its final status,
-  including the 0.2 s start delay; wall s the same span on the wall clock. The bridge
+  including the planner's start delay; wall s the same span on the wall clock. The bridge
   steps in lockstep with the setpoint stream, so this is the whole loop's speed (planner,
   bridge, DDS and the Python recorder writing every topic), not the drive model's alone.
   Peak RSS: VmHWM of the node processes from /proc, polled while they ran. chunks lost:
@@ -230,7 +230,7 @@ x real time: planned machine time / wall time to plan (or, in (b), to run).
   bench/results/soak.txt (make soak, about an hour).
 Limits found (measured, not worked around):
 - Between jobs the bridge (simulation) idles at wall-clock pace until the next job's first
-  setpoint (start delay 0.2 s); 100 short jobs back to back took ~1.1 s wall each in
+  setpoint (the planner's start delay); 100 short jobs back to back took ~1.1 s wall each in
   session 1's measurement, a stall whose cause is not diagnosed (test_load uses a 0.5 s
   underrun_timeout).
 - job_goal is reliable KEEP_LAST depth 10: clients keep at most 10 goals unacknowledged

@@ -34,7 +34,8 @@ class Settings:
     chunk_points: int = 100
     lookahead_ns: int = 300_000_000  # how far setpoints run ahead of the feedback; also
     # the longest a cancel waits: a stop begins where the setpoints sent so far end
-    start_delay_ns: int = 200_000_000  # from the feedback that starts a job to its first setpoint
+    start_delay_ns: int = 400_000_000  # from the feedback that starts a job to its first setpoint:
+    # the idle bridge's time runs on meanwhile, so this must cover a tick slowed by a loaded CPU
     status_period_ns: int = 500_000_000  # progress updates on job_status
 
 

@@ -48,6 +48,7 @@ class Sim:
         self.statuses: list[tuple[int, Status]] = []
         self.events: list[dict] = []
         self.active_ids: list[str] = []
+        self.started: dict[str, int] = {}  # job id -> the tick that started it
         self.feedback = feedback
 
     def commanded(self) -> np.ndarray:
@@ -69,6 +70,7 @@ class Sim:
         active = self.ex.active.job_id if self.ex.active is not None else ""
         if active and (not self.active_ids or self.active_ids[-1] != active):
             self.active_ids.append(active)
+            self.started.setdefault(active, self.now)
         for chunk in out.chunks:
             times = chunk.stamp_ns + np.arange(len(chunk.positions)) * chunk.period_ns
             points = self.bridge.validate(list(chunk.joints), times, chunk.positions, chunk.velocities,
@@ -212,8 +214,7 @@ def test_chunks_contiguous_on_grid_never_past_bounded_and_end_at_rest(start_ns):
         assert chunk.joints == MILL.joint_names
     for prev, cur in zip(chunks, chunks[1:]):
         assert cur.stamp_ns == prev.end_ns + settings.period_ns
-    first_tick = sim.chunks[0][0]
-    assert chunks[0].stamp_ns == -(-(first_tick + settings.start_delay_ns) // MS) * MS
+    assert chunks[0].stamp_ns == -(-(sim.started["demo"] + settings.start_delay_ns) // MS) * MS
     t, p, v, a = stitched(chunks)
     assert_within_limits(p, 1e-3)
     assert np.all(v[-1] == 0.0) and np.all(a[-1] == 0.0)
@@ -411,8 +412,8 @@ def test_cancel_of_the_running_job_stops_jerk_limited():
 def test_cancel_before_the_first_setpoint_stops_after_what_was_sent():
     sim = Sim()
     sim.submit(move_job("early", [{"rapid": {"x": 400}}]))
-    sim.tick()  # started: streaming begins after the start delay
-    assert sim.chunks and sim.chunks[0][1].stamp_ns > sim.now
+    sim.run_until(lambda: sim.chunks)  # started, and the first setpoints sent ahead of the start
+    assert sim.chunks[0][1].stamp_ns > sim.now
     sent_until = sim.chunks[-1][1].end_ns
     sim.ex.cancel("early", sim.now)
     final = sim.run_job("early")

@@ -29,6 +29,7 @@ from typing import Iterator
 from cnc_msgs_py.machine import SPINDLE, Machine
 
 from .builder import PlanBuilder
+from .drilling import DrillCycle
 from .jobs import drill_cycle, move_targets, plan_into, settle_time
 from .kinematics import Kinematics
 from .timeline import Event, Plan
@@ -60,8 +61,7 @@ def plan_segments(job: SimpleNamespace, machine: Machine,
     start = dict(start_position or {})
     count = segment_count(job)
     kin = Kinematics(machine, job.setup, job.tool)
-    if count > 1:
-        _check_whole(job, machine, kin, start)
+    whole = _check_whole(job, machine, kin, start) if count > 1 else None
     size = SEGMENT_HOLES if job.kind == "drill" else SEGMENT_MOVES
     speed = 0.0
     for k in range(count):
@@ -75,7 +75,7 @@ def plan_segments(job: SimpleNamespace, machine: Machine,
         else:
             plan_into(part, machine, builder, stop_spindle=False)
             if job.kind == "drill" and not last:
-                _hold_until_settled(builder, part, kin)
+                _hold_until_settled(builder, whole, kin)
             plan = builder.build(stop_spindle=last)
             plan.events = [_renumbered(e, k * size) for e in plan.events]
         if last:
@@ -85,11 +85,13 @@ def plan_segments(job: SimpleNamespace, machine: Machine,
         yield plan
 
 
-def _check_whole(job: SimpleNamespace, machine: Machine, kin: Kinematics, start: dict[str, float]) -> None:
+def _check_whole(job: SimpleNamespace, machine: Machine, kin: Kinematics,
+                 start: dict[str, float]) -> DrillCycle | None:
+    """Every hole or target against the travel; a drill job's cycle, for its tolerances."""
     if job.kind == "drill":
-        drill_cycle(job, machine, kin)
-    else:
-        move_targets(job, machine, kin, start)
+        return drill_cycle(job, machine, kin)
+    move_targets(job, machine, kin, start)
+    return None
 
 
 def _part(job: SimpleNamespace, lo: int, hi: int) -> SimpleNamespace:
@@ -102,9 +104,8 @@ def _part(job: SimpleNamespace, lo: int, hi: int) -> SimpleNamespace:
     return job
 
 
-def _hold_until_settled(builder: PlanBuilder, part: SimpleNamespace, kin: Kinematics) -> None:
+def _hold_until_settled(builder: PlanBuilder, cycle: DrillCycle, kin: Kinematics) -> None:
     """Hold every axis at the segment's end until the simulated feedback is at rest."""
-    cycle = drill_cycle(part, builder.machine, kin)
     t_end = builder.end_time()
     settle = settle_time(builder, kin, t_end, SETTLE_SHARE * cycle.xy_tolerance, cycle.servo_period)
     for joint in builder.machine.joint_names:

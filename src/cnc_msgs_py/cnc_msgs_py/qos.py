@@ -21,8 +21,12 @@ JOINT_TRAJECTORY = _reliable(topics.TRAJECTORY_DEPTH)
 # Feedback: a deep history so that a recorder falling behind during fast simulation
 # catches up from the queue instead of losing samples.
 JOINT_STATES = _reliable(topics.FEEDBACK_DEPTH)
-# Readers that only need the latest state (the planner's clock and position).
-LATEST = _reliable(1)
+# Readers that only need the latest state (the planner's clock and position): best
+# effort, as for sensor data. A reliable reader delivers in order, so one lost sample
+# holds back every newer one until the writer repairs it or drops it from its 20000-deep
+# history; the soak caught the planner blind for 20 s that way, mid-job.
+LATEST = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.BEST_EFFORT,
+                    durability=DurabilityPolicy.VOLATILE)
 DIAGNOSTICS = _reliable(10)
 INJECT_FAULT = _reliable(10)
 ALARM_RESET = _reliable(10)

@@ -3,7 +3,8 @@
 In simulation mode the bridge owns time: it publishes /clock in lockstep with its servo
 steps, runs as fast as setpoints allow while axes move, waits for setpoints (up to
 ``underrun_timeout`` of wall time) rather than starving, and paces idle time to the wall
-clock. In real-time mode it steps on a wall timer and stamps with the system clock.
+clock (lockstep.py). In real-time mode it steps on a wall timer and stamps with the system
+clock.
 """
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ from cnc_msgs_py import qos, topics
 from cnc_msgs_py.machine import load_machine
 from cnc_msgs_py.node import run_node
 
+from .lockstep import Lockstep
 from .servo import Feedback, ServoLoop
 from .setpoints import SetpointError
 
@@ -44,7 +46,6 @@ class BridgeNode(Node):
         self.publish_every = max(1, round(NS / rate / self.period_ns))
         clock_rate = self.declare_parameter("clock_rate", 100.0).value
         self.clock_every = max(1, round(NS / clock_rate / self.period_ns))
-        self.underrun_timeout = self.declare_parameter("underrun_timeout", 1.0).value
         # Few steps per callback so that setpoint chunks (a stop!) are taken between batches.
         self.max_steps = self.declare_parameter("steps_per_callback", 10).value
         start = self.declare_parameter("start_position", list(machine.home_position)).value
@@ -61,9 +62,8 @@ class BridgeNode(Node):
         self.t_ns = 0 if self.simulation else self.get_clock().now().nanoseconds // self.period_ns * self.period_ns
         self.steps = 0
         self.rejected = ""
-        self.wall_start = time.monotonic()
-        self.sim_at_wall_start = self.t_ns
-        self.starved_since: float | None = None
+        self.lockstep = Lockstep(self.period_ns, self.declare_parameter("underrun_timeout", 1.0).value,
+                                 self.t_ns, time.monotonic())
         self.create_timer(0.001, self.run)
         self.get_logger().info(f"driving '{machine.name}' ({'simulation' if self.simulation else 'real time'})")
 
@@ -95,30 +95,13 @@ class BridgeNode(Node):
         """Step the servo loop as far as time (sim: setpoints; real time: the wall) allows."""
         if self.simulation:
             for _ in range(self.max_steps):
-                if not self._may_step():
+                if not self.lockstep.may_step(self.loop, self.t_ns, time.monotonic()):
                     break
                 self._step()
         else:
             now = self.get_clock().now().nanoseconds
             while self.t_ns + self.period_ns <= now:
                 self._step()
-
-    def _may_step(self) -> bool:
-        nxt = self.t_ns + self.period_ns
-        if self.loop.starved(nxt):
-            self.starved_since = self.starved_since or time.monotonic()
-            if time.monotonic() - self.starved_since < self.underrun_timeout:
-                return False  # lockstep: wait for the planner rather than run dry
-        self.starved_since = None
-        end = self.loop.buffer.end_ns
-        if self.loop.at_rest and (end is None or end <= self.t_ns):
-            # Idle: let sim time follow the wall clock so new jobs can be scheduled.
-            wall_ns = (time.monotonic() - self.wall_start) * NS
-            if nxt - self.sim_at_wall_start > wall_ns:
-                return False
-        else:
-            self.wall_start, self.sim_at_wall_start = time.monotonic(), self.t_ns
-        return True
 
     def _step(self) -> None:
         feedback = self.loop.step(self.t_ns)

@@ -1,0 +1,41 @@
+"""When a simulated bridge may take its next servo step.
+
+In simulation the bridge owns time. While the axes move it steps as fast as setpoints
+allow and waits for the planner (up to ``underrun_timeout`` of wall time) rather than
+run dry; at rest with nothing buffered ahead, sim time follows the wall clock, so that
+new jobs can be scheduled a little ahead of it.
+"""
+from __future__ import annotations
+
+from .servo import ServoLoop
+
+NS = 1_000_000_000
+
+
+class Lockstep:
+    def __init__(self, period_ns: int, underrun_timeout_s: float, t_ns: int, wall_s: float) -> None:
+        self.period_ns = period_ns
+        self.underrun_timeout_s = underrun_timeout_s
+        self.starved_since: float | None = None  # wall time the wait for setpoints began
+        self.wall_start, self.sim_at_wall_start = wall_s, t_ns  # where idle time last synced
+
+    def may_step(self, loop: ServoLoop, t_ns: int, wall_s: float) -> bool:
+        """May the loop step at ``t_ns`` now (wall time ``wall_s``)?
+
+        Waits while the step at ``t_ns`` has no setpoint and the axes move: the check is
+        on the step about to be taken, so a job's last point (at rest) is stepped at once
+        instead of after the underrun timeout. Once the timeout has passed it steps anyway,
+        and the loop raises its buffer-ran-dry alarm and stops.
+        """
+        if loop.starved(t_ns):
+            if self.starved_since is None:
+                self.starved_since = wall_s
+            if wall_s - self.starved_since < self.underrun_timeout_s:
+                return False
+        self.starved_since = None
+        end = loop.buffer.end_ns
+        if loop.at_rest and (end is None or end <= t_ns):
+            # Idle: sim time may not run ahead of the wall clock.
+            return t_ns + self.period_ns - self.sim_at_wall_start <= (wall_s - self.wall_start) * NS
+        self.wall_start, self.sim_at_wall_start = wall_s, t_ns
+        return True

@@ -1,0 +1,82 @@
+"""When the simulated bridge steps: lockstep with the setpoints, idle time on the wall clock."""
+from __future__ import annotations
+
+import numpy as np
+from ruckig import InputParameter, Ruckig, Trajectory
+
+from cnc_msgs_py.machine import load_machine
+from cnc_servo_bridge.lockstep import Lockstep
+from cnc_servo_bridge.servo import ServoLoop
+
+MILL = load_machine("mill3")
+JOINTS = list(MILL.joint_names)
+MS = 1_000_000
+TIMEOUT_S = 1.0
+
+
+def move_to(target: list[float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A jerk-limited move from rest at 0, every 1 ms, ending at rest (as a job ends)."""
+    inp = InputParameter(len(JOINTS))
+    inp.current_position = [0.0] * len(JOINTS)
+    inp.target_position = target
+    axes = [MILL.axes[j] for j in JOINTS]
+    inp.max_velocity = [a.max_velocity for a in axes]
+    inp.max_acceleration = [a.max_acceleration for a in axes]
+    inp.max_jerk = [a.max_jerk for a in axes]
+    trajectory = Trajectory(len(JOINTS))
+    Ruckig(len(JOINTS)).calculate(inp, trajectory)
+    n = int(np.ceil(trajectory.duration * 1e3)) + 1
+    p, v, a = (np.array(x) for x in zip(*(trajectory.at_time(min(i / 1e3, trajectory.duration)) for i in range(n))))
+    v[-1], a[-1] = 0.0, 0.0
+    return p, v, a
+
+
+def loaded_loop(points: slice = slice(None)) -> tuple[ServoLoop, int]:
+    """A loop at rest at t=0 with (part of) a 20 mm X move buffered from 10 ms on."""
+    p, v, a = move_to([0.02, 0.0, 0.0, 0.0])
+    p, v, a = p[points], v[points], a[points]
+    loop = ServoLoop(MILL, MS)
+    times = 10 * MS + np.arange(len(p)) * MS
+    loop.accept(JOINTS, times, p, v, a, 0)
+    return loop, int(times[-1])
+
+
+def test_a_job_is_stepped_to_its_last_point_without_waiting():
+    loop, end_ns = loaded_loop()
+    lockstep = Lockstep(MS, TIMEOUT_S, 0, wall_s=0.0)
+    wall = 0.0
+    t = 0
+    while t <= end_ns:
+        # sim time runs ahead of the wall clock while setpoints are buffered: wall stays put
+        assert lockstep.may_step(loop, t, wall), f"waited at {t / 1e9:.3f} s (job ends at {end_ns / 1e9:.3f} s)"
+        loop.step(t)
+        t += MS
+    assert loop.at_rest and not loop.alarm
+    # then idle: the next step waits for the wall clock (a period or two)
+    assert not lockstep.may_step(loop, t, wall)
+    assert lockstep.may_step(loop, t, wall + 2.5e-3)
+
+
+def test_a_stream_cut_short_while_moving_waits_then_runs_dry():
+    loop, end_ns = loaded_loop(slice(0, 60))  # the planner fell silent mid-move
+    lockstep = Lockstep(MS, TIMEOUT_S, 0, wall_s=0.0)
+    t = 0
+    while t <= end_ns:
+        assert lockstep.may_step(loop, t, 0.0)
+        loop.step(t)
+        t += MS
+    assert not loop.at_rest
+    assert not lockstep.may_step(loop, t, 0.0)  # waits for setpoints...
+    assert not lockstep.may_step(loop, t, TIMEOUT_S - 1e-3)
+    assert lockstep.may_step(loop, t, TIMEOUT_S)  # ...for the underrun timeout, then steps
+    loop.step(t)
+    assert loop.alarm.startswith("setpoint buffer ran dry")
+
+
+def test_idle_sim_time_follows_the_wall_clock():
+    loop = ServoLoop(MILL, MS)
+    lockstep = Lockstep(MS, TIMEOUT_S, 5 * MS, wall_s=100.0)
+    assert not lockstep.may_step(loop, 5 * MS, 100.0)
+    assert lockstep.may_step(loop, 5 * MS, 100.001)
+    assert not lockstep.may_step(loop, 15 * MS, 100.005)  # 10 ms of sim after 5 ms of wall
+    assert lockstep.may_step(loop, 15 * MS, 100.0115)

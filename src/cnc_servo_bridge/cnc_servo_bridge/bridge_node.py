@@ -73,7 +73,7 @@ class BridgeNode(Node):
         try:
             p, v, a = (np.array([getattr(pt, k) for pt in msg.points], dtype=float)
                        for k in ("positions", "velocities", "accelerations"))
-            self.loop.accept(list(msg.joint_names), times, p, v, a, self.t_ns + self.period_ns)
+            self.loop.accept(list(msg.joint_names), times, p, v, a, self.t_ns)
         except (SetpointError, ValueError) as err:
             self.rejected = f"refused setpoints: {err}"
             self.get_logger().error(self.rejected)

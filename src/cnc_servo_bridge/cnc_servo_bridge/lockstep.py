@@ -10,6 +10,8 @@ from __future__ import annotations
 from .servo import ServoLoop
 
 NS = 1_000_000_000
+IDLE_GRACE_S = 0.1  # wall time the stream may take to continue after running out at rest
+# (a job paused at rest right at a chunk's end) before idle sim time starts to run
 
 
 class Lockstep:
@@ -17,15 +19,15 @@ class Lockstep:
         self.period_ns = period_ns
         self.underrun_timeout_s = underrun_timeout_s
         self.starved_since: float | None = None  # wall time the wait for setpoints began
-        self.wall_start, self.sim_at_wall_start = wall_s, t_ns  # where idle time last synced
+        self.idle = True
+        self.wall_start, self.sim_at_wall_start = wall_s, t_ns  # idle sim time runs from here
 
     def may_step(self, loop: ServoLoop, t_ns: int, wall_s: float) -> bool:
-        """May the loop step at ``t_ns`` now (wall time ``wall_s``)?
+        """May the loop take its step at ``t_ns`` now (wall time ``wall_s``)?
 
-        Waits while the step at ``t_ns`` has no setpoint and the axes move: the check is
-        on the step about to be taken, so a job's last point (at rest) is stepped at once
-        instead of after the underrun timeout. Once the timeout has passed it steps anyway,
-        and the loop raises its buffer-ran-dry alarm and stops.
+        While the axes move it waits only when the step at ``t_ns`` itself has no
+        setpoint, so a job's last point (at rest) is stepped at once; after the underrun
+        timeout it steps anyway, and the loop raises its buffer-ran-dry alarm and stops.
         """
         if loop.starved(t_ns):
             if self.starved_since is None:
@@ -34,8 +36,10 @@ class Lockstep:
                 return False
         self.starved_since = None
         end = loop.buffer.end_ns
-        if loop.at_rest and (end is None or end <= t_ns):
-            # Idle: sim time may not run ahead of the wall clock.
+        if loop.at_rest and (end is None or end < t_ns):
+            if not self.idle:  # the stream just ran out at rest: grace, then wall time
+                self.idle = True
+                self.wall_start, self.sim_at_wall_start = wall_s + IDLE_GRACE_S, t_ns
             return t_ns + self.period_ns - self.sim_at_wall_start <= (wall_s - self.wall_start) * NS
-        self.wall_start, self.sim_at_wall_start = wall_s, t_ns
+        self.idle = False
         return True

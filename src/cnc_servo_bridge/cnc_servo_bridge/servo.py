@@ -51,7 +51,9 @@ class ServoLoop:
         return bool(np.all(np.abs(self.reference[1]) <= REST_VELOCITY)) and self._stop is None
 
     def accept(self, names: list[str], times_ns: np.ndarray, p, v, a, now_ns: int) -> None:
-        """Validate and buffer a chunk. Raises SetpointError (the diagnostic) if refused."""
+        """Validate and buffer a chunk. Raises SetpointError (the diagnostic) if refused.
+
+        ``now_ns``: the next step, not taken yet: the earliest a chunk may start."""
         if self.alarm:
             raise SetpointError(f"alarm latched ({self.alarm}): waiting for alarm_reset")
         setpoints = self.buffer.validate(names, times_ns, p, v, a, now_ns, self.reference[:2])

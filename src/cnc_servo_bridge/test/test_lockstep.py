@@ -5,7 +5,7 @@ import numpy as np
 from ruckig import InputParameter, Ruckig, Trajectory
 
 from cnc_msgs_py.machine import load_machine
-from cnc_servo_bridge.lockstep import Lockstep
+from cnc_servo_bridge.lockstep import IDLE_GRACE_S, Lockstep
 from cnc_servo_bridge.servo import ServoLoop
 
 MILL = load_machine("mill3")
@@ -14,10 +14,10 @@ MS = 1_000_000
 TIMEOUT_S = 1.0
 
 
-def move_to(target: list[float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A jerk-limited move from rest at 0, every 1 ms, ending at rest (as a job ends)."""
+def move(start: list[float], target: list[float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A jerk-limited move from rest to rest, every 1 ms (as a job, or a move of one)."""
     inp = InputParameter(len(JOINTS))
-    inp.current_position = [0.0] * len(JOINTS)
+    inp.current_position = start
     inp.target_position = target
     axes = [MILL.axes[j] for j in JOINTS]
     inp.max_velocity = [a.max_velocity for a in axes]
@@ -33,7 +33,7 @@ def move_to(target: list[float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def loaded_loop(points: slice = slice(None)) -> tuple[ServoLoop, int]:
     """A loop at rest at t=0 with (part of) a 20 mm X move buffered from 10 ms on."""
-    p, v, a = move_to([0.02, 0.0, 0.0, 0.0])
+    p, v, a = move([0.0] * 4, [0.02, 0.0, 0.0, 0.0])
     p, v, a = p[points], v[points], a[points]
     loop = ServoLoop(MILL, MS)
     times = 10 * MS + np.arange(len(p)) * MS
@@ -52,9 +52,25 @@ def test_a_job_is_stepped_to_its_last_point_without_waiting():
         loop.step(t)
         t += MS
     assert loop.at_rest and not loop.alarm
-    # then idle: the next step waits for the wall clock (a period or two)
+    # then idle: after a grace, sim time follows the wall clock
     assert not lockstep.may_step(loop, t, wall)
-    assert lockstep.may_step(loop, t, wall + 2.5e-3)
+    assert not lockstep.may_step(loop, t, wall + IDLE_GRACE_S)
+    assert lockstep.may_step(loop, t, wall + IDLE_GRACE_S + 1.5e-3)
+
+
+def test_a_stream_that_ran_out_at_rest_continues_within_the_grace():
+    """A job paused at rest right at the end of a chunk: the next chunk, sent as the
+    planner sees the last feedback, starts at the step not taken yet and is accepted."""
+    loop, end_ns = loaded_loop()
+    lockstep = Lockstep(MS, TIMEOUT_S, 0, wall_s=0.0)
+    t = 0
+    while lockstep.may_step(loop, t, 0.0):
+        loop.step(t)
+        t += MS
+    assert t == end_ns + MS  # ran out at rest: waiting
+    p, v, a = move([0.02, 0.0, 0.0, 0.0], [0.0] * 4)
+    loop.accept(JOINTS, t + np.arange(len(p)) * MS, p, v, a, now_ns=t)
+    assert lockstep.may_step(loop, t, IDLE_GRACE_S / 2)
 
 
 def test_a_stream_cut_short_while_moving_waits_then_runs_dry():

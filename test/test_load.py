@@ -17,11 +17,6 @@ PERIOD_NS = 1_000_000  # the executive's interpolation period
 IN_FLIGHT = 5  # goals submitted but not yet acknowledged ('accepted'): job_goal is
 # reliable with depth 10 (README), so a burst of more goals than that while the planner is
 # busy planning loses the oldest ones; a cell controller keeps fewer in flight.
-# In simulation the bridge waits up to underrun_timeout (default 1 s of wall time) for
-# more setpoints whenever the last one has run out while the axes still settle, which is
-# how every job ends: with the default that alone is 100 s here. Half a second keeps the
-# test short while leaving the planner ample wall time to deliver a chunk mid-job.
-BRIDGE = {"underrun_timeout": 0.5}
 
 
 def job_text(job_id: str, x: float) -> str:
@@ -32,7 +27,7 @@ def job_text(job_id: str, x: float) -> str:
 
 def test_hundred_jobs_back_to_back_finish_in_order_without_gaps(tmp_path):
     ids = [f"load{k:03d}" for k in range(JOBS)]
-    with Session("mill3", tmp_path / "bag", bridge_params=BRIDGE) as session:
+    with Session("mill3", tmp_path / "bag") as session:
         def acknowledged() -> int:
             return sum(s["state"] == "accepted" for s in session.recorder.statuses)
 

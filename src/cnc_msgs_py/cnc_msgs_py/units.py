@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 
 M_PER_MM = 1.0e-3
+NS = 1_000_000_000  # nanoseconds per second: times on topics and in recordings are integer ns
 
 
 def mm(value: float) -> float:

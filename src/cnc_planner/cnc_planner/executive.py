@@ -17,10 +17,11 @@ from cnc_msgs_py.job import decode_job, job_id_of, parse_job
 from cnc_msgs_py.machine import Machine
 from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.status import Status
+from cnc_msgs_py.units import NS
 
 from .lookahead import JobPlan
 from .segments import plan_segments, segment_count
-from .streaming import NS, Chunk, SetpointStream
+from .streaming import Chunk, SetpointStream
 from .timeline import Event
 
 START_MATCH = 1e-6  # m: a plan made from another position than the axes hold is redone

@@ -18,9 +18,10 @@ from cnc_msgs_py import qos, topics
 from cnc_msgs_py.machine import load_machine
 from cnc_msgs_py.node import run_node
 from cnc_msgs_py.status import Status, decode_cancel
+from cnc_msgs_py.units import NS
 
 from .executive import Executive, Output, Settings
-from .streaming import NS, Chunk
+from .streaming import Chunk
 
 
 def chunk_to_msg(chunk: Chunk) -> JointTrajectory:

@@ -11,12 +11,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from cnc_msgs_py.machine import Machine
+from cnc_msgs_py.units import NS
 
 from .motion import axis_limits, velocity_change
 from .lookahead import JobPlan
 from .timeline import JointTimeline, Piece, Plan
 
-NS = 1_000_000_000
 
 
 @dataclass

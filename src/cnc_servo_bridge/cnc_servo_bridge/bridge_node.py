@@ -24,12 +24,12 @@ from trajectory_msgs.msg import JointTrajectory
 from cnc_msgs_py import qos, topics
 from cnc_msgs_py.machine import load_machine
 from cnc_msgs_py.node import run_node
+from cnc_msgs_py.units import NS
 
 from .lockstep import Lockstep
 from .servo import Feedback, ServoLoop
 from .setpoints import SetpointError
 
-NS = 1_000_000_000
 
 
 def stamp(t_ns: int) -> Time:

@@ -7,9 +7,10 @@ new jobs can be scheduled a little ahead of it.
 """
 from __future__ import annotations
 
+from cnc_msgs_py.units import NS
+
 from .servo import ServoLoop
 
-NS = 1_000_000_000
 IDLE_GRACE_S = 0.1  # wall time the stream may take to continue after running out at rest
 # (a job paused at rest right at a chunk's end) before idle sim time starts to run
 

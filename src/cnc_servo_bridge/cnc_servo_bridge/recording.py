@@ -15,7 +15,8 @@ from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
-NS = 1_000_000_000
+from cnc_msgs_py.units import NS
+
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 
 # Topic (relative to the run's namespace, or absolute) -> message type.

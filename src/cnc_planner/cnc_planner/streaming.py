@@ -18,7 +18,6 @@ from .lookahead import JobPlan
 from .timeline import JointTimeline, Piece, Plan
 
 
-
 @dataclass
 class Chunk:
     """Setpoints of consecutive grid instants: stamp of the first, then every period."""

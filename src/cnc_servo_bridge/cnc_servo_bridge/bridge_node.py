@@ -31,7 +31,6 @@ from .servo import Feedback, ServoLoop
 from .setpoints import SetpointError
 
 
-
 def stamp(t_ns: int) -> Time:
     return Time(sec=t_ns // NS, nanosec=t_ns % NS)
 

@@ -12,11 +12,18 @@ Per axis and servo period T (all joints vectorised):
 
 With accel_ff = 1 the velocity loop's lag is cancelled for slow references; the planner
 uses the same model (this module) to predict and pre-compensate the lag.
+
+``step`` is the reference implementation, one period at a time in numpy. ``run`` and
+``simulate`` advance many periods at once through a compiled kernel (numba) that performs
+the same floating-point operations in the same order, so both give the same positions
+(tested to 1e-12 m, clamps and quantisation included) at a few hundred times the speed:
+the planner's safety searches and the bridge's block stepping use it.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from cnc_msgs_py.machine import Machine
@@ -66,7 +73,7 @@ class DriveModel:
         """Advance one servo period towards the reference; returns the following error."""
         s = self.state
         error = p_ref - s.measured
-        v_cmd = self.velocity_ff * v_ref + self.accel_ff * self.lag * a_ref + self.kp * error
+        v_cmd = self.velocity_ff * v_ref + (self.accel_ff * self.lag) * a_ref + self.kp * error
         v_cmd = np.clip(v_cmd, -self.v_limit, self.v_limit)
         v_new = v_cmd + (s.velocity - v_cmd) * self.decay
         v_new = s.velocity + np.clip(v_new - s.velocity, -self.dv_limit, self.dv_limit)
@@ -74,6 +81,24 @@ class DriveModel:
         s.velocity = v_new
         s.measured = self.quantise(s.position)
         return error
+
+    def run(
+        self, p_ref: np.ndarray, v_ref: np.ndarray, a_ref: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Step the drives once per reference row (shape (n, joints)) from their state.
+
+        Row i of the result is what the encoders read (measured position, velocity and
+        following error) before step i, as ``step`` would give it row by row.
+        """
+        p_ref, v_ref, a_ref = (np.ascontiguousarray(x, dtype=float).reshape(-1, len(self.joints))
+                               for x in (p_ref, v_ref, a_ref))
+        s = self.state
+        s.position, s.velocity, s.measured = (np.array(x, dtype=float) for x in (s.position, s.velocity, s.measured))
+        out = np.empty((3, *p_ref.shape))
+        _run(p_ref, v_ref, a_ref, s.position, s.velocity, s.measured, self.kp, self.velocity_ff,
+             self.accel_ff * self.lag, self.decay, self.v_limit, self.dv_limit, self.resolution,
+             self.period, out)
+        return out[0], out[1], out[2]
 
     def simulate(
         self, p_ref: np.ndarray, v_ref: np.ndarray, a_ref: np.ndarray
@@ -85,10 +110,25 @@ class DriveModel:
         what the bridge publishes for that instant, computed offline.
         """
         self.reset(p_ref[0])
-        positions = np.empty_like(p_ref)
-        velocities = np.empty_like(p_ref)
-        for i in range(len(p_ref)):
-            positions[i] = self.state.measured
-            velocities[i] = self.state.velocity
-            self.step(p_ref[i], v_ref[i], a_ref[i])
+        positions, velocities, _ = self.run(p_ref, v_ref, a_ref)
         return positions, velocities
+
+
+@numba.njit(cache=True, nogil=True)
+def _run(p_ref, v_ref, a_ref, position, velocity, measured, kp, velocity_ff, accel_gain, decay,
+         v_limit, dv_limit, resolution, period, out):  # pragma: no cover (compiled)
+    """DriveModel.step over every row, in place on the state; out[0..2] = measured,
+    velocity and following error before each step. Same operations, same order."""
+    for i in range(p_ref.shape[0]):
+        for j in range(p_ref.shape[1]):
+            error = p_ref[i, j] - measured[j]
+            out[0, i, j] = measured[j]
+            out[1, i, j] = velocity[j]
+            out[2, i, j] = error
+            v_cmd = velocity_ff[j] * v_ref[i, j] + accel_gain[j] * a_ref[i, j] + kp[j] * error
+            v_cmd = min(max(v_cmd, -v_limit[j]), v_limit[j])
+            v_new = v_cmd + (velocity[j] - v_cmd) * decay[j]
+            v_new = velocity[j] + min(max(v_new - velocity[j], -dv_limit[j]), dv_limit[j])
+            position[j] = position[j] + 0.5 * (velocity[j] + v_new) * period
+            velocity[j] = v_new
+            measured[j] = np.rint(position[j] / resolution[j]) * resolution[j]

@@ -166,3 +166,52 @@ def test_joints_are_independent():
     model = DriveModel(MILL, T, ("x", "z"))
     model.step(np.array([1e-5, 0.0]), np.zeros(2), np.zeros(2))
     assert model.state.position[1] == 0.0 and model.state.position[0] > 0.0
+
+
+def _reference_run(model: DriveModel, p: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """The step-by-step reference: measured position before each step."""
+    out = np.empty_like(p)
+    for i in range(len(p)):
+        out[i] = model.state.measured
+        model.step(p[i], v[i], a[i])
+    return out
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_compiled_kernel_equals_the_step_by_step_model(seed):
+    """Random references on random drives, hard enough to hit the velocity clamp, the
+    acceleration rate limit and every encoder resolution, give the same positions."""
+    rng = np.random.default_rng(seed)
+    drives = {j: dataclasses.replace(MILL.drives[j], kp=float(rng.uniform(10, 150)),
+                                     velocity_ff=float(rng.uniform(0, 1)), accel_ff=float(rng.uniform(0, 1)),
+                                     velocity_lag=float(rng.uniform(2e-4, 1e-2)),
+                                     resolution=float(10 ** rng.uniform(-8, -5)))
+              for j in MILL.joint_names}
+    machine = dataclasses.replace(MILL, drives=drives)
+    n = 3000
+    # Steps and ramps of up to 0.2 m: far beyond what the clamps let the drive follow.
+    p = np.cumsum(rng.normal(0, 1e-3, (n, 4)), axis=0) + np.repeat(rng.uniform(-0.2, 0.2, (n // 500, 4)), 500, axis=0)
+    v = rng.normal(0, 0.5, (n, 4))
+    a = rng.normal(0, 20, (n, 4))
+    reference, fast = DriveModel(machine, T), DriveModel(machine, T)
+    start = rng.uniform(-0.1, 0.1, 4)
+    reference.reset(start)
+    fast.reset(start)
+    expected = _reference_run(reference, p, v, a)
+    measured, velocity, error = fast.run(p, v, a)
+    assert np.max(np.abs(measured - expected)) <= 1e-12
+    assert np.max(np.abs(fast.state.position - reference.state.position)) <= 1e-12
+    assert np.max(np.abs(error - (p - expected))) <= 1e-12
+    # The clamps were active: the model did not just follow a linear filter.
+    assert np.max(np.abs(np.diff(velocity, axis=0))) >= 0.999 * np.min(fast.dv_limit[:3])
+    assert np.max(np.abs(velocity[:, :3])) >= 0.999 * np.min(fast.v_limit[:3])
+
+
+def test_simulate_starts_at_rest_at_the_first_reference():
+    model = x_drive()
+    p = np.linspace(0.01, 0.02, 50)[:, None]
+    v = np.full_like(p, 0.2)
+    positions, velocities = model.simulate(p, v, np.zeros_like(p))
+    assert positions[0, 0] == pytest.approx(0.01, abs=RES)
+    assert velocities[0, 0] == 0.0
+    assert np.all(np.diff(positions[:, 0]) >= 0)

@@ -82,6 +82,14 @@ class Machine:
     drives: dict[str, Drive]
     kinematics: KinematicParams = KinematicParams()
     home: tuple[float, ...] = ()  # where the axes stand at power-up, in joint order (0 if empty)
+    # The machine as described, when this one is a derated copy the planner plans motion
+    # on (cnc_planner.headroom): the drives still clamp at the described limits.
+    nominal: Machine | None = None
+
+    @property
+    def drive_axes(self) -> dict[str, Axis]:
+        """The axis limits the servo drives clamp at: the described ones."""
+        return (self.nominal or self).axes
 
     @property
     def home_position(self) -> tuple[float, ...]:

@@ -26,6 +26,7 @@ from cnc_servo_bridge.drive import DriveModel
 
 from .builder import PlanBuilder
 from .drilling import RETURN_CLEARANCE, DrillCycle, plan_drilling
+from .headroom import plan_within_limits
 from .kinematics import Kinematics
 from .motion import axis_limits, path_limits
 from .path_job import plan_path
@@ -35,7 +36,7 @@ from .turning import TurningError, check_outlines, plan_roughing
 from .vibration import Vibration, VibrationError, VibrationFeed
 
 TWO_PI = 6.283185307179586
-VIBRATION_SERVO_PERIOD = 1e-3  # the bridge's servo period the compensation is computed for
+SERVO_PERIOD = 1e-3  # the bridge's servo period: compensation and the plan check use it
 XYZ = ("x", "y", "z")
 INTERNAL = "cannot be planned: internal planner error"
 MAX_VIBRATION_FEED_S = 600.0  # one vibrated feed move at most this long: its compensation is
@@ -114,7 +115,7 @@ def feed_move(builder: PlanBuilder, target: dict[str, float], feed_per_rev: floa
     try:
         move = VibrationFeed(length, feed_per_rev, vibration, abs(speed), along,
                              start_angle=builder.timelines[SPINDLE].position_at(start),
-                             drive_model_factory=lambda: DriveModel(machine, VIBRATION_SERVO_PERIOD, (lead,)))
+                             drive_model_factory=lambda: DriveModel(machine, SERVO_PERIOD, (lead,)))
     except VibrationError as err:
         name, _, reason = str(err).partition(":")
         if not name.startswith("vibration"):  # about the move itself (e.g. its length)
@@ -468,9 +469,12 @@ def plan_job(job: SimpleNamespace, machine: Machine, start_position: dict[str, f
     Raises:
         JobError: the job cannot be done on this machine (field and reason named).
     """
-    builder = PlanBuilder(machine, start_position)
-    builder.event(0.0, "job_start", kind=job.kind)
-    plan = plan_into(job, machine, builder)
+    def plan(planned_on: Machine) -> Plan:
+        builder = PlanBuilder(planned_on, start_position)
+        builder.event(0.0, "job_start", kind=job.kind)
+        return plan_into(job, planned_on, builder)
+
+    plan = plan_within_limits(plan, machine, SERVO_PERIOD, job.kind)
     plan.events.append(Event(plan.duration, "job_end"))
     return plan
 

@@ -29,8 +29,9 @@ from typing import Iterator
 from cnc_msgs_py.machine import SPINDLE, Machine
 
 from .builder import PlanBuilder
+from .headroom import plan_within_limits
 from .drilling import DrillCycle
-from .jobs import drill_cycle, move_targets, plan_into, settle_time
+from .jobs import SERVO_PERIOD, drill_cycle, move_targets, plan_into, settle_time
 from .kinematics import Kinematics
 from .timeline import Event, Plan
 
@@ -67,17 +68,21 @@ def plan_segments(job: SimpleNamespace, machine: Machine,
     for k in range(count):
         first, last = k == 0, k == count - 1
         part = _part(job, k * size, (k + 1) * size)
-        builder = PlanBuilder(machine, start, speed)
-        if first:
-            builder.event(0.0, "job_start", kind=job.kind)
-        if count == 1:
-            plan = plan_into(part, machine, builder)
-        else:
-            plan_into(part, machine, builder, stop_spindle=False)
+
+        def segment(planned_on: Machine) -> Plan:
+            builder = PlanBuilder(planned_on, start, speed)
+            if first:
+                builder.event(0.0, "job_start", kind=job.kind)
+            if count == 1:
+                return plan_into(part, planned_on, builder)
+            plan_into(part, planned_on, builder, stop_spindle=False)
             if job.kind == "drill" and not last:
                 _hold_until_settled(builder, whole, kin)
             plan = builder.build(stop_spindle=last)
             plan.events = [_renumbered(e, k * size) for e in plan.events]
+            return plan
+
+        plan = plan_within_limits(segment, machine, SERVO_PERIOD, job.kind)
         if last:
             plan.events.append(Event(plan.duration, "job_end"))
         speed = plan.timelines[SPINDLE].end_velocity

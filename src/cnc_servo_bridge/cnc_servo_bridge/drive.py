@@ -48,7 +48,7 @@ class DriveModel:
         self.joints = joints or machine.joint_names
         self.period = servo_period
         drives = [machine.drives[j] for j in self.joints]
-        axes = [machine.axes[j] for j in self.joints]
+        axes = [machine.drive_axes[j] for j in self.joints]
         self.kp = np.array([d.kp for d in drives])
         self.velocity_ff = np.array([d.velocity_ff for d in drives])
         self.accel_ff = np.array([d.accel_ff for d in drives])

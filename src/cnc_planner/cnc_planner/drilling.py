@@ -64,7 +64,7 @@ from .vibration import COMPENSATION_TAIL, learn_correction, settled
 # above R on feedback too, where Z reads up to ~0.3 mm below its command while braking).
 # The overlapped cycle ends at this level as well after its last hole (mode 3).
 RETURN_CLEARANCE = 1e-3
-SAFETY_ROUNDS = 12      # drive-model rounds before giving up on a safe timing
+SAFETY_ROUNDS = 40      # drive-model rounds before giving up on a safe timing
 GENTLE_ROUNDS = 6       # bisection rounds for the gentle air acceleration
 MODE3_GRID = 24         # retract speeds tried per level of the mode-3 search
 FINE_STEP = 1e-4        # s, sampling of tolerance crossings and of a_z^2
@@ -73,6 +73,10 @@ XY_LEAD_PERIODS = 8     # rest before an S1 move in its learning reference: room
 XY_FIXED_PERIODS = 4    # of which uncorrected: the compensated command leads by the rest
 XY_COMMAND_LEAD = XY_LEAD_PERIODS - XY_FIXED_PERIODS + 1  # periods: from its last rest sample
 XY_SETTLED_COUNTS = 0.25  # encoder counts: an X/Y correction below this has settled
+BOTTOM_ROUNDS = 3  # drive-model rounds placing the Z command's turning point at a hole's bottom
+BOTTOM_STEADY_S = 0.3  # s of steady feed before R in those rounds: the drive settles into it
+XY_HEADROOM_ROUNDS = 4  # rounds of slowing an S1 move until its compensated command fits
+XY_HEADROOM_MARGIN = 0.98  # of the limits: the compensated command aims this far inside them
 
 
 @dataclass(frozen=True)
@@ -132,6 +136,12 @@ def _z_move(lim: Limits, p0: float, v0: float, a0: float, p1: float | None = Non
     return RuckigMove(calculate(inp))
 
 
+def _z_samples(move: RuckigMove, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Position, velocity, acceleration of a one-axis move at local times (held at its end)."""
+    out = move.sample_all(np.minimum(t, move.duration))
+    return out[0][:, 0], out[1][:, 0], out[2][:, 0]
+
+
 def _state(move: RuckigMove, t: float) -> tuple[float, float, float]:
     p, v, a = move.trajectory.at_time(t)
     return float(p[0]), float(v[0]), float(a[0])
@@ -186,9 +196,11 @@ class _Job:
         if start["z"] < cycle.r_z:
             raise ValueError("the tool must start above the R plane")
         self.n = len(cycle.holes)
-        self.feed_stroke = _z_move(Limits(cycle.feed, self.z.acceleration, self.z.jerk),
-                                   cycle.r_z, -cycle.feed, 0.0, cycle.bottom_z)
+        self.bottom = cycle.bottom_z  # where the Z command turns: see _compensate_bottom
+        self.feed_stroke = _z_move(self.feed_limits, cycle.r_z, -cycle.feed, 0.0, self.bottom)
         self.fast = self._fast_exit()
+        if cycle.compensate_xy:
+            self._compensate_bottom()
         position = (start["x"], start["y"])
         self.xy: list[_XYMove] = []
         corrections: dict[tuple, np.ndarray] = {}
@@ -201,17 +213,52 @@ class _Job:
                 # The drive is linear up to its encoder counts: one correction per displacement.
                 key = tuple(round((xy.target[j] - dict(zip(XY, position))[j]) * 1e9) for j in xy.joints)
                 if key not in corrections:
-                    corrections[key] = _xy_correction(machine, cycle.servo_period, xy)
-                xy = _XYMove(xy.target, xy.move, xy.leave, xy.arrive, xy.joints, corrections[key])
+                    corrections[key] = _xy_headroom(machine, cycle.servo_period, xy, position, hole,
+                                                    cycle.xy_tolerance)
+                shares, correction = corrections[key]
+                xy = replace(_xy_move(machine, position, hole, cycle.xy_tolerance, shares), correction=correction)
             self.xy.append(xy)
             position = hole
+
+    @property
+    def feed_limits(self) -> Limits:
+        return Limits(self.cycle.feed, self.z.acceleration, self.z.jerk)
+
+    def _compensate_bottom(self) -> None:
+        """Move the Z command's turning point so that the drive's feedback turns at the
+        programmed depth: a drive with velocity lag overshoots the bottom of a feed
+        stroke (about 16 um on mill3 at 1200 mm/min), one without full feed-forward
+        falls short. The drive model runs the feed stroke (from a steady feed) and the
+        fast exit; the turning point moves by the error, a few rounds (the drive is
+        linear, so the first round already lands within an encoder count or two)."""
+        c, period = self.cycle, self.cycle.servo_period
+        drive = DriveModel(self.machine, period, ("z",))
+        steady = math.ceil(BOTTOM_STEADY_S / period)
+        for _ in range(BOTTOM_ROUNDS):
+            t_stroke = np.arange(math.ceil(self.feed_stroke.duration / period)) * period
+            t_exit = np.arange(math.ceil(self.fast.move.duration / period) + steady) * period
+            before = c.r_z + c.feed * period * np.arange(steady, 0, -1)
+            pieces = [(before, np.full(steady, -c.feed), np.zeros(steady)),
+                      _z_samples(self.feed_stroke, t_stroke), _z_samples(self.fast.move, t_exit)]
+            p, v, a = (np.concatenate([piece[q] for piece in pieces])[:, None] for q in range(3))
+            drive.reset(p[0])
+            drive.state.velocity[:] = v[0]
+            feedback = drive.run(p, v, a)[0][:, 0]
+            error = float(np.min(feedback[steady:]) - c.bottom_z)
+            if abs(error) < 0.5 * float(drive.resolution[0]):
+                break
+            self.bottom -= error
+            if not self.machine.axes["z"].within_travel(self.bottom):
+                raise ValueError(f"bottom_z: the drive needs a command at {self.bottom} m, outside the Z travel")
+            self.feed_stroke = _z_move(self.feed_limits, c.r_z, -c.feed, 0.0, self.bottom)
+            self.fast = self._fast_exit()
 
     def _fast_exit(self) -> _Retract:
         """Full acceleration out of the hole: mode 1 if rapid is reached below R, else 2."""
         c, z = self.cycle, self.z
-        run = _z_move(z, c.bottom_z, 0.0, 0.0, None, z.velocity)
+        run = _z_move(z, self.bottom, 0.0, 0.0, None, z.velocity)
         if _state(run, run.duration)[0] <= c.r_z:
-            move = _z_move(z, c.bottom_z, 0.0, 0.0, c.r_z, z.velocity)
+            move = _z_move(z, self.bottom, 0.0, 0.0, c.r_z, z.velocity)
             return _Retract(1, move, move.duration, (c.r_z, z.velocity, 0.0))
         t_r = _crossing(run, c.r_z)
         return _Retract(2, run, t_r, _state(run, t_r))
@@ -225,9 +272,9 @@ class _Job:
     def _slow_exit(self, speed: float) -> _Retract | None:
         """Mode 3: reach R at ``speed`` with zero acceleration, or None if that needs an overshoot."""
         c = self.cycle
-        move = _z_move(self.z, c.bottom_z, 0.0, 0.0, c.r_z, speed)
+        move = _z_move(self.z, self.bottom, 0.0, 0.0, c.r_z, speed)
         extrema = move.trajectory.position_extrema[0]
-        if extrema.min < c.bottom_z - 1e-9 or extrema.max > c.r_z + 1e-9:
+        if extrema.min < self.bottom - 1e-9 or extrema.max > c.r_z + 1e-9:
             return None
         return _Retract(3, move, move.duration, (c.r_z, speed, 0.0))
 
@@ -271,18 +318,22 @@ class _Job:
             fast = self.retract(0.0)
             stop = _z_move(self.z, *fast.state, None, 0.0)
             return fast.mode, fast.move, fast.t_r, stop
-        move = _z_move(self.z, c.bottom_z, 0.0, 0.0, c.r_z + RETURN_CLEARANCE)
+        move = _z_move(self.z, self.bottom, 0.0, 0.0, c.r_z + RETURN_CLEARANCE)
         return 3, move, _crossing(move, c.r_z), None
 
 
-def _xy_move(machine: Machine, p0: tuple[float, float], p1: tuple[float, float], tol: float) -> _XYMove:
-    """S1 as the builder's rapid will plan it, with its command's tolerance crossings."""
+def _xy_move(machine: Machine, p0: tuple[float, float], p1: tuple[float, float], tol: float,
+             shares: tuple[float, float] = (1.0, 1.0)) -> _XYMove:
+    """S1 as the builder's rapid will plan it, with its command's tolerance crossings;
+    ``shares`` of the velocity and of the acceleration and jerk limits leave headroom for
+    the drive compensation (_xy_headroom)."""
     target = dict(zip(XY, p1))
     joints = [j for j, a, b in zip(XY, p0, p1) if abs(a - b) > 1e-12]
     if not joints:
         return _XYMove(target, None, math.inf, 0.0)
-    move = point_to_point([dict(zip(XY, p0))[j] for j in joints], [target[j] for j in joints],
-                          [axis_limits(machine.axes[j]) for j in joints])
+    limits = [axis_limits(machine.axes[j]) for j in joints]
+    limits = [Limits(lim.velocity * shares[0], lim.acceleration * shares[1], lim.jerk * shares[1]) for lim in limits]
+    move = point_to_point([dict(zip(XY, p0))[j] for j in joints], [target[j] for j in joints], limits)
     ts = np.arange(0.0, move.duration + FINE_STEP, FINE_STEP)
     p = move.sample_all(np.minimum(ts, move.duration))[0]
     start = np.array([dict(zip(XY, p0))[j] for j in joints])
@@ -296,7 +347,23 @@ def _xy_move(machine: Machine, p0: tuple[float, float], p1: tuple[float, float],
     return _XYMove(target, move, leave, arrive, tuple(joints))
 
 
-def _xy_correction(machine: Machine, period: float, xy: _XYMove) -> np.ndarray:
+def _xy_headroom(machine: Machine, period: float, xy: _XYMove, p0: tuple[float, float],
+                 p1: tuple[float, float], tol: float) -> tuple[tuple[float, float], np.ndarray | None]:
+    """Limit shares of one S1 move and its correction such that the compensated command
+    stays within the axis limits: the move is planned slower by what the correction adds
+    on top of it, a few rounds; if that does not converge, the plain move (no correction,
+    within the limits by construction) and the timing search waits for the feedback."""
+    shares = (1.0, 1.0)
+    for _ in range(XY_HEADROOM_ROUNDS):
+        correction, (over_v, over_a) = _xy_correction(machine, period, xy)
+        if over_v <= 1.0 and over_a <= 1.0:
+            return shares, correction
+        shares = (shares[0] * min(1.0, XY_HEADROOM_MARGIN / over_v), shares[1] * min(1.0, XY_HEADROOM_MARGIN / over_a))
+        xy = _xy_move(machine, p0, p1, tol, shares)
+    return (1.0, 1.0), None
+
+
+def _xy_correction(machine: Machine, period: float, xy: _XYMove) -> tuple[np.ndarray, tuple[float, float]]:
     """The drive-model correction (3, k, joints) of one S1 move, from rest, on the servo
     grid: sample 0 (still zero) lies XY_COMMAND_LEAD periods before the move starts.
 
@@ -315,7 +382,18 @@ def _xy_correction(machine: Machine, period: float, xy: _XYMove) -> np.ndarray:
     v, a = v * moving[:, None], a * moving[:, None]
     correction = learn_correction(drive, p, v, a, XY_FIXED_PERIODS)
     tolerance = XY_SETTLED_COUNTS * float(np.min(drive.resolution))
-    return settled(correction[XY_FIXED_PERIODS - 1:], XY_COMMAND_LEAD + steps, period, tolerance)
+    kept = settled(correction[XY_FIXED_PERIODS - 1:], XY_COMMAND_LEAD + steps, period, tolerance)
+    # The command (motion plus correction) against the limits, by how much it exceeds them.
+    k = min(kept.shape[1], n - XY_FIXED_PERIODS + 1)
+    limits = [machine.axes[j] for j in xy.joints]
+    over = tuple(float(np.max(np.abs(ref[XY_FIXED_PERIODS - 1:][:k] + kept[q, :k]) / [getattr(ax, name) for ax in limits]))
+                 for q, ref, name in ((1, v, "max_velocity"), (2, a, "max_acceleration")))
+    return kept, over
+
+
+def _length(xy: _XYMove) -> int:
+    """Servo samples of an S1 move's correction (1 for a move planned without one)."""
+    return xy.correction.shape[1] if xy.correction is not None else 1
 
 
 class _XYCommand:
@@ -330,7 +408,7 @@ class _XYCommand:
         self._cache: tuple[tuple, dict] | None = None
 
     def add(self, t_s1: float, xy: _XYMove) -> None:
-        lead = XY_COMMAND_LEAD * self.period
+        lead = XY_COMMAND_LEAD * self.period if xy.correction is not None else 0.0
         self.entries.append((t_s1, xy, t_s1 - lead))
 
     @property
@@ -339,8 +417,7 @@ class _XYCommand:
 
     @property
     def end(self) -> float:
-        return max(max(t + xy.duration, c + (xy.correction.shape[1] - 1) * self.period)
-                   for t, xy, c in self.entries)
+        return max(max(t + xy.duration, c + (_length(xy) - 1) * self.period) for t, xy, c in self.entries)
 
     def sample(self, ts: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
         key = (len(ts), float(ts[0]), float(ts[-1])) if len(ts) else (0, 0.0, 0.0)
@@ -360,9 +437,9 @@ class _XYCommand:
                 for dof, j in enumerate(xy.joints):
                     for q in range(3):
                         out[j][q][inside] = pva[q][:, dof]
-            k = xy.correction.shape[1]
+            k = _length(xy)
             span = (ts >= c0) & (ts <= c0 + (k - 1) * self.period)
-            if span.any():
+            if xy.correction is not None and span.any():
                 grid = np.arange(k) * self.period
                 for dof, j in enumerate(xy.joints):
                     for q in range(3):
@@ -489,7 +566,7 @@ def _emit_conventional(job: _Job) -> Emit:
             t_down = builder.rapid({"z": c.r_z}, start=t_s2)
             builder.event(t_s2, "S2", hole=i, mode=None)
             builder.event(t_down, "R_down", hole=i, mode=None)
-            t_s3 = builder.linear({"z": c.bottom_z}, c.feed, start=t_down)
+            t_s3 = builder.linear({"z": job.bottom}, c.feed, start=t_down)
             builder.event(t_s3, "S3", hole=i, mode=None)
             up = builder.rapid_move({"z": clearance})
             t_up = t_s3 + _crossing(up, c.r_z)

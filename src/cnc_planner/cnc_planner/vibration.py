@@ -38,6 +38,7 @@ LEAD_PERIODS = 8  # rest before the ramp: room for a compensated command to lead
 COMPENSATION_TAIL = 0.25  # s: longest the compensated command may settle after the motion
 COMPENSATION_PASSES = 3  # simulate-and-correct passes; the first already lands within counts
 INVERSE_BAND = (0.15, 0.35)  # share of the servo rate: full inverse below, faded out up to
+QUANTISATION_SHARE = 0.05  # of the acceleration limit that chasing encoder counts may cost
 SETTLED = 1.0e-9  # m: command correction below this counts as settled
 
 
@@ -292,7 +293,11 @@ class VibrationFeed:
         self._axis = axis
         self._start_angle = start_angle
         self._period = servo_period
-        self._t_lead = LEAD_PERIODS * servo_period
+        drive = drive_model_factory() if drive_model_factory is not None else None
+        self._band = compensation_band(drive, axis.max_acceleration) if drive is not None else INVERSE_BAND
+        # the narrower the band, the longer the correction leads the motion
+        self._lead_periods = math.ceil(LEAD_PERIODS * INVERSE_BAND[1] / self._band[1])
+        self._t_lead = self._lead_periods * servo_period
         self._feed_origin = start_angle + spindle_speed_rad_s * self._t_lead
         self._t_join, self._ramp_in = self._join()
         self._t_stop, self._ramp_out = self._stop()
@@ -300,8 +305,8 @@ class VibrationFeed:
         self._correction: np.ndarray | None = None
         # whole servo periods: the move's last setpoint is its end state
         self._duration = math.ceil(self._t_end / servo_period - 1e-9) * servo_period
-        if drive_model_factory is not None:
-            self._compensate(drive_model_factory())
+        if drive is not None:
+            self._compensate(drive)
 
     @property
     def duration(self) -> float:
@@ -389,7 +394,7 @@ class VibrationFeed:
         n = math.ceil((self._t_end + COMPENSATION_TAIL) / self._period) + 1
         t = np.arange(n) * self._period
         s, v, a = self._ideal(t)
-        best = learn_correction(drive, s[:, None], v[:, None], a[:, None], LEAD_PERIODS // 2)
+        best = learn_correction(drive, s[:, None], v[:, None], a[:, None], self._lead_periods // 2, self._band)
         self._correction = settled(best, round(self._duration / self._period), self._period)[:, :, 0]
         self._duration = (self._correction.shape[1] - 1) * self._period
 
@@ -404,6 +409,17 @@ class VibrationFeed:
         done = t >= self._duration
         s[done], v[done], a[done] = self._length, 0.0, 0.0
         return s, v, a
+
+
+def compensation_band(drive: DriveModel, max_acceleration: float) -> tuple[float, float]:
+    """The band (shares of the servo rate) a correction may use on this drive's encoder:
+    INVERSE_BAND, narrowed on a coarse encoder so that chasing its counts (a count at
+    frequency f costs resolution * (2 pi f)^2 of acceleration) stays within
+    QUANTISATION_SHARE of the acceleration limit."""
+    resolution = float(np.max(drive.resolution))
+    f_max = math.sqrt(QUANTISATION_SHARE * max_acceleration / resolution) / TWO_PI * drive.period
+    hi = min(INVERSE_BAND[1], f_max)
+    return hi * INVERSE_BAND[0] / INVERSE_BAND[1], hi
 
 
 def learn_correction(

@@ -235,7 +235,7 @@ class Executive:
         """Publish the job's events up to ``t_ns`` (none once it is stopping)."""
         for event in job.plan.pop_events(job.stream.plan_time(t_ns)):
             if not job.stream.stopping:
-                out.events.append(_event_doc(job.job_id, job.stream.start_ns, event))
+                out.events.append(event_doc(job.job_id, job.stream.start_ns, event))
                 job.passing.append(event)
 
 
@@ -244,6 +244,7 @@ def out_last_position(stream: SetpointStream) -> np.ndarray:
     return p[0]
 
 
-def _event_doc(job_id: str, start_ns: int, event: Event) -> dict:
+def event_doc(job_id: str, start_ns: int, event: Event) -> dict:
+    """An event as published on job_events: stamped in ROS time from the job's start."""
     return {"job_id": job_id, "name": event.name, "stamp_ns": int(start_ns + round(event.time * NS)),
             "plan_time_s": event.time, **event.data}

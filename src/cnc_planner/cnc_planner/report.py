@@ -23,9 +23,11 @@ from cnc_servo_bridge.recording import Run
 from cnc_servo_bridge.thread_analysis import analyze_thread
 
 from .drilling import lower_bound_time
+from .executive import event_doc
 from .jobs import drill_cycle, plan_job, tilted, tilted_frame
 from .kinematics import Kinematics
 from .path_report import path_section
+from .timeline import Event, Plan
 from .turning import max_gouge, plan_naive, plan_roughing
 
 FINAL = ("rejected", "succeeded", "aborted", "canceled")
@@ -53,8 +55,9 @@ def last_job(run: Run) -> tuple[str | None, SimpleNamespace | None]:
         return job_id, None
 
 
-def build_report(run: Run) -> dict:
-    """The figures of a run's last job, judged on feedback."""
+def build_report(run: Run, machine: Machine | None = None) -> dict:
+    """The figures of a run's last job, judged on feedback; ``machine``: the description
+    it ran on, if not the one the job names in config (a drawn one, in tests)."""
     job_id, job = last_job(run)
     status = final_status(run, job_id)
     axes = tuple(j for j in run.joints if j != SPINDLE)
@@ -74,7 +77,7 @@ def build_report(run: Run) -> dict:
     if job is None or status["state"] == "rejected" or len(run.feedback_t) == 0:
         return report
     try:
-        machine = load_machine(job.machine)
+        machine = machine or load_machine(job.machine)
     except MachineError:
         return report
     window = job_window(run, status["job_id"])
@@ -96,6 +99,23 @@ def job_window(run: Run, job_id: str) -> np.ndarray:
     starts = [e["stamp_ns"] for e in run.events if e.get("job_id") == job_id and e["name"] == "job_start"]
     t0 = (starts[-1] / 1e9) if starts else run.feedback_t[0]
     return run.feedback_t >= t0 - 1e-9
+
+
+def predicted_run(doc: dict, plan: Plan, machine: Machine, period: float = 1e-3) -> Run:
+    """A run as the bridge would record it, predicted offline: the plan's setpoints, the
+    drive model's feedback to them and the plan's events, so that build_report judges a
+    prediction with the very code that judges recordings. A prediction, not a recording:
+    no DDS, no timing, no lost samples."""
+    t, feedback = simulated_feedback(plan, machine, period)
+    p, v, _ = plan.sample(t)
+    job_id = str(doc.get("job_id", ""))
+    final = {"job_id": job_id, "state": "succeeded", "reason": "", "cycle_time_s": plan.duration}
+    events = [event_doc(job_id, 0, e) for e in plan.events]
+    if not any(e.name == "job_start" for e in plan.events):
+        events.insert(0, event_doc(job_id, 0, Event(0.0, "job_start")))
+    return Run(joints=plan.joints, feedback_t=t, feedback=feedback, feedback_velocity=np.zeros_like(feedback),
+               command_t=t, command=p, command_velocity=v, goals=[json.dumps(doc)], statuses=[final],
+               events=events)
 
 
 def simulated_feedback(plan, machine: Machine, period: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
@@ -192,7 +212,12 @@ def thread_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.
 
     feedback = judge(run.feedback_t[window], run.feedback[window])
     inside = run.command_t >= run.feedback_t[window][0]
-    commanded = judge(run.command_t[inside], run.command[inside])
+    try:
+        commanded = judge(run.command_t[inside], run.command[inside])
+    except ValueError as err:
+        # A drive without feed-forward is commanded well ahead of the groove it cuts: its
+        # commands need not trace a helix at all. The feedback is what is judged.
+        return {**feedback, "commanded": {"error": str(err)}}
     return {**feedback, "commanded": {k: commanded[k] for k in ("max_chip_revs", "helix_residual_mm", "depth_error_mm")}}
 
 

@@ -37,6 +37,7 @@ CHIP_LIMIT_REVS = 1.0  # longest continuous cut allowed in a cutting pass
 POINTS_PER_REV = 720  # groove grid: 0.5 deg of helix
 SYNC_TOLERANCE = 0.02  # share of the lead: g advancing at lead/rev within this is synchronised
 SYNC_WINDOW = 0.1  # rad of spindle over which the lead per revolution is measured
+SYNC_COUNTS = 2.0  # encoder counts of error the lead measurement tolerates
 MIN_SYNC_REVS = 0.5  # shorter synchronised stretches are not passes
 MIN_AMPLITUDE = 1e-6  # m: a depth oscillation smaller than this is no vibration
 FFT_OVERSAMPLING = 16
@@ -111,14 +112,17 @@ def longest_runs(mask: np.ndarray) -> np.ndarray:
     return out
 
 
-def _sync_segments(theta: np.ndarray, g: np.ndarray, groove: Groove) -> list[tuple[int, int]]:
+def _sync_segments(theta: np.ndarray, g: np.ndarray, groove: Groove, quantum: float) -> list[tuple[int, int]]:
     """Index ranges [i0, i1] of passes: synchronised stretches (g advancing one lead per
-    revolution) grown to the whole run over which g keeps advancing."""
+    revolution) grown to the whole run over which g keeps advancing. The lead is measured
+    over SYNC_WINDOW of spindle, or longer on a coarse encoder (``quantum``, m), so that
+    its counts cannot make a synchronised stretch look out of step."""
     steps = np.diff(theta)
     turning = steps[steps > 0]
     if turning.size == 0:
         return []
-    w = max(1, math.ceil(SYNC_WINDOW / float(np.median(turning))))
+    window = max(SYNC_WINDOW, TWO_PI * SYNC_COUNTS * quantum / (SYNC_TOLERANCE * groove.lead))
+    w = max(1, math.ceil(window / float(np.median(turning))))
     n = theta.size
     lo, hi = np.clip(np.arange(n) - w, 0, n - 1), np.clip(np.arange(n) + w, 0, n - 1)
     dtheta = theta[hi] - theta[lo]
@@ -201,7 +205,9 @@ def analyze_thread(
     grid = groove.grid()
     psi = s * (grid - groove.start_z) / lead  # revolutions along the helix from start_z
     full = s * grid <= s * (groove.end_z - s * lead) + 1e-12  # face to one lead before end_z
-    segments = _sync_segments(theta, g, groove)
+    moves = np.abs(np.diff(z))
+    quantum = float(np.min(moves[moves > 0])) if np.any(moves > 0) else 0.0  # the z encoder's count, at most
+    segments = _sync_segments(theta, g, groove, quantum)
 
     # helix: g - lead*theta/2pi is the same for every pass of every start, modulo lead/starts
     pitch = lead / groove.starts

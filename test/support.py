@@ -33,3 +33,40 @@ def running_past(session, job_id: str, fraction: float) -> None:
     status = first_running()
     target = status["stamp_ns"] + int((START_DELAY_S + fraction * status["duration_s"]) * 1e9)
     session.spin_until(lambda: session.recorder.sim_ns >= target, 60, f"{job_id} never got to {fraction}")
+
+
+def check_verified_properties(kind: str, report: dict, depth_mm: float = 5.0, depth_tol_mm: float = 0.05) -> None:
+    """What we verify on feedback for a job kind's example (report.json of a recording, or
+    of a predicted run): drilling safe and at depth, an air-cut in every vibrating
+    revolution, thread chips broken with full depth on one helix, turning never into the
+    part, a path completed."""
+    if kind == "drill":
+        drill = report["drill"]
+        assert drill["safety_violations"] == 0
+        for hole in drill["holes"]:
+            assert abs(hole["depth_mm"] - depth_mm) <= depth_tol_mm, hole
+    elif kind == "vibration move":
+        aircut = report["aircut"]["feedback"]
+        assert aircut["revolutions"] >= 100
+        assert aircut["revolutions_with_aircut"] == aircut["revolutions"]
+    elif kind == "thread":
+        thread = report["thread"]
+        assert thread["full_depth"] and thread["helix_residual_mm"] < 0.01
+        for cut in thread["passes"]:
+            if cut["doc_mm"] > 0.05:
+                assert cut["max_chip_revs"] <= 1.0, cut
+    elif kind == "turn":
+        assert report["turn"]["max_gouge_part_mm"] == 0
+    elif kind == "path":
+        assert report["kinematics"]["completed"]
+    else:
+        raise ValueError(f"no properties for job kind {kind!r}")
+
+
+EXAMPLES = {  # job kind -> the example job of that kind in config/jobs
+    "drill": "drill_row.yaml",
+    "thread": "thread_m12.yaml",
+    "vibration move": "lathe_feed_vibration.yaml",
+    "turn": "turn_stepped.yaml",
+    "path": "path_mill3.yaml",
+}

@@ -21,7 +21,7 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis.control import currently_in_test_context
 from hypothesis import strategies as st
 
-from cnc_msgs_py.job import AXIS_KEYS, JOB, parse_job
+from cnc_msgs_py.job import ARC_ZX, AXIS_KEYS, JOB, OutlineEntry, parse_job
 from cnc_msgs_py.schema import JobError, List, Obj, _key
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -81,6 +81,8 @@ def field_path_known(doc, reason: str) -> bool:
         if not found:
             # the missing last step: a key of the schema under an existing parent, then ': '
             m = re.match(r"([A-Za-z_][A-Za-z0-9_]*): ", rest)
+            if isinstance(spec, OutlineEntry) and isinstance(node, dict):
+                spec = ARC_ZX  # an outline entry given as a mapping is an arc
             return bool(m) and isinstance(node, dict) and isinstance(spec, Obj) and m.group(1) in spec.fields
         step = rest[: len(rest) - len(after)]
         if isinstance(node, list):

@@ -1,4 +1,6 @@
-"""Our side: the planner's own job code and the bridge's drive model, offline.
+"""Our side: the same job documents through both nodes over topics, judged on the
+recorded feedback (`run_over_topics`); and the offline prediction of the same
+(`run`: the planner's job code and the bridge's drive model), for comparison.
 
 Two descriptions of each machine: the normal jerk-limited one from config/machines/, and
 a "fair race" variant generated into a temporary directory (on CNC_MACHINE_PATH) that is
@@ -7,14 +9,23 @@ a/j = 10 us, far below the 1 ms servo period: our profiles become the trapezoids
 LinuxCNC 2.9 plans. Everything else (velocity and acceleration limits, drive models) is
 the file's own.
 
-A plan is made by the planner's job code (cnc_planner.jobs.PLANNERS, as plan_job) with
-one difference: the spindle is run up to speed before the measured motion, as on the
-LinuxCNC side, where the simulated spindle is at speed at once. Its setpoints, sampled
-every 1 ms, go through cnc_servo_bridge.drive.DriveModel: the bridge's feedback.
+Over topics, a Session (cnc_planner.runner, as cnc-run runs it) starts the bridge with its
+axes at the row's start and the planner, records every topic and judges the recorded
+joint_states: the planner plans as for any job (derated until the plan meets the
+bridge's contract). Times run from the first to the last axis motion, and the axes wait
+for the spindle to reach speed before they move, so the spindle run-up is not counted,
+as on the LinuxCNC side, where the simulated spindle is at speed at once.
+
+Offline, a plan is made by the planner's job code (cnc_planner.jobs.PLANNERS, as
+plan_job) with the spindle run up to speed before the measured motion, and its
+setpoints, sampled every 1 ms, go through cnc_servo_bridge.drive.DriveModel.
 """
 from __future__ import annotations
 
+import itertools
+import json
 import os
+import tempfile
 from pathlib import Path
 
 import yaml
@@ -22,9 +33,12 @@ import yaml
 from cnc_msgs_py.job import parse_job
 from cnc_msgs_py.machine import SPINDLE, Machine, load_machine, machine_dirs
 from cnc_planner.builder import PlanBuilder
-from cnc_planner.jobs import PLANNERS
+from cnc_planner.headroom import plan_within_limits
+from cnc_planner.jobs import PLANNERS, SERVO_PERIOD
 from cnc_planner.kinematics import Kinematics
 from cnc_planner.report import simulated_feedback
+from cnc_planner.runner import Session
+from cnc_servo_bridge.recording import read_run
 from cnc_planner.timeline import Event
 
 TRAPEZOID_JERK = 1.0e6  # m/s^3 (rad/s^3 on the spindle): a/j = 9.8e-6 s
@@ -64,13 +78,17 @@ def plan(doc: dict, machine: Machine, start_mm: dict[str, float]):
     """Plan a job document (machinist units) on machine from start_mm (axis -> mm)."""
     job = parse_job({**doc, "machine": machine.name})
     start = {j: v * 1e-3 for j, v in start_mm.items()}
-    builder = PlanBuilder(machine, start)
-    ready = builder.spindle(job.spindle_rpm)
-    for j in machine.linear_axes:
-        builder.timelines[j].add_hold(0.0, ready)
-    builder.event(ready, "job_start", kind=job.kind)
-    PLANNERS[job.kind](job, machine, builder, Kinematics(machine, job.setup, job.tool))
-    result = builder.build()
+
+    def planned(on: Machine):
+        builder = PlanBuilder(on, start)
+        ready = builder.spindle(job.spindle_rpm)
+        for j in on.linear_axes:
+            builder.timelines[j].add_hold(0.0, ready)
+        builder.event(ready, "job_start", kind=job.kind)
+        PLANNERS[job.kind](job, on, builder, Kinematics(on, job.setup, job.tool))
+        return builder.build()
+
+    result = plan_within_limits(planned, machine, SERVO_PERIOD, job.kind)  # as plan_job
     result.events.append(Event(result.duration, "job_end"))
     return result
 
@@ -82,3 +100,27 @@ def run(doc: dict, machine: Machine, start_mm: dict[str, float]) -> dict:
     out = {j: fb[:, k] for k, j in enumerate(p.joints)}
     return {"t": t, "axes": {j: out[j] for j in machine.linear_axes}, "spindle": out.get(SPINDLE),
             "planned_s": p.duration}
+
+
+_runs = itertools.count()
+
+
+def run_over_topics(doc: dict, machine: Machine, start_mm: dict[str, float], timeout: float = 600.0) -> dict:
+    """The job through both nodes over topics, from start_mm: the recorded feedback as
+    t (s), {axis: m} and the spindle (rad), with the final status."""
+    job_id = f"{doc['job_id']}-{machine.name}-{next(_runs)}"
+    text = json.dumps({**doc, "machine": machine.name, "job_id": job_id})
+    start = [start_mm.get(j, 0.0) * 1e-3 for j in machine.joint_names]
+    with tempfile.TemporaryDirectory() as tmp:
+        bag = Path(tmp) / "bag"
+        with Session(machine.name, bag, bridge_params={"start_position": start}) as session:
+            session.submit(text)
+            status = session.wait(job_id, timeout)
+            session.settle(status)
+        run = read_run(bag)
+    if status["state"] != "succeeded":
+        raise RuntimeError(f"{job_id}: {status['state']}: {status.get('reason', '')}")
+    columns = {j: run.feedback[:, run.column(j)] for j in run.joints}
+    return {"t": run.feedback_t, "axes": {j: columns[j] for j in machine.linear_axes},
+            "spindle": columns.get(SPINDLE), "planned_s": status.get("cycle_time_s"),
+            "samples": len(run.feedback_t)}

@@ -4,12 +4,13 @@ LinuxCNC (Debian's linuxcnc-uspace, installed with apt-get if missing) runs head
 an unprivileged user on INI/HAL files generated from config/machines/mill3.yaml and
 lathe.yaml (velocity and acceleration limits exactly ours; 2.9 plans without a jerk
 limit), driven by bench/peer/driver.py, every joint position recorded each 1 ms servo
-period with HAL's sampler and halsampler -t. Our side plans the same job documents with
-the planner's job code and runs them through the bridge's drive model, on the normal
-jerk-limited machine and on a "fair race" copy whose jerk limit is so high that our
-profiles are trapezoids too. Both recordings go through the same drive model and the
-same analysis code (bench/peer/analysis.py). While LinuxCNC runs (in real time, about
-5 minutes), our side is computed.
+period with HAL's sampler and halsampler -t. Our side runs the same job documents through
+both nodes over topics (bench/peer/ours.py: bridge and planner as cnc-run starts them,
+every topic recorded), on the normal jerk-limited machine and on a "fair race" copy whose
+jerk limit is so high that our profiles are trapezoids too, and judges the recorded
+feedback; the offline prediction of the fair run is printed beside it. LinuxCNC's
+recording goes through our drive model; both go through the same analysis code
+(bench/peer/analysis.py). While LinuxCNC runs (in real time, about 5 minutes), our side runs.
 
     .venv/bin/python bench/peer/run.py [--keep DIR] [--reuse DIR] [--only REGEX]
 
@@ -21,10 +22,8 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import re
 import shutil
-import subprocess
 import sys
 import tempfile
 import threading
@@ -36,15 +35,12 @@ ROOT = HERE.parents[1]
 sys.path[:0] = [str(HERE)] + [str(ROOT / "src" / p) for p in ("cnc_msgs_py", "cnc_planner", "cnc_servo_bridge")]
 
 import numpy as np  # noqa: E402
-import yaml  # noqa: E402
 
 from cnc_msgs_py.job import parse_job  # noqa: E402
 from cnc_msgs_py.machine import load_machine  # noqa: E402
 from cnc_planner.drilling import lower_bound_time  # noqa: E402
-from cnc_planner.jobs import drill_cycle, plan_job  # noqa: E402
+from cnc_planner.jobs import drill_cycle  # noqa: E402
 from cnc_planner.kinematics import Kinematics  # noqa: E402
-from cnc_planner.report import job_window, simulated_feedback  # noqa: E402
-from cnc_servo_bridge.recording import read_run  # noqa: E402
 
 import analysis  # noqa: E402
 import gcode  # noqa: E402
@@ -98,10 +94,12 @@ def our_side(row: Row, variants: dict) -> dict:
     """Our figures for one row on both machine descriptions."""
     res = {}
     for key, machine in variants[row.machine].items():
-        o = ours.run(row.doc, machine, row.start)
+        o = ours.run_over_topics(row.doc, machine, row.start)
         res[key] = judge(row, o["t"], o["axes"], o["spindle"], machine)
+        predicted = ours.run(row.doc, machine, row.start)
+        res[key]["predicted"] = judge(row, predicted["t"], predicted["axes"], predicted["spindle"], machine)["time"]
         if row.reference_doc is not None:
-            ref = ours.run(row.reference_doc, machine, row.start)
+            ref = ours.run_over_topics(row.reference_doc, machine, row.start)
             res[key + "_plain"] = judge(row, ref["t"], ref["axes"], ref["spindle"], machine)
     return res
 
@@ -176,7 +174,7 @@ def why(row: Row, lc: dict, fair: dict) -> str:
 
 
 def table(rows: list[Row], lc: dict, us: dict, bounds: dict) -> list[str]:
-    head = (f"{'row':<22} {'peer':>4} {'LC s':>7} {'ideal s':>7} {'safe s':>7} {'G98 s':>7} {'fair s':>7} "
+    head = (f"{'row':<22} {'peer':>4} {'LC s':>7} {'ideal s':>7} {'safe s':>7} {'G98 s':>7} {'fair s':>7} {'pred s':>7} "
             f"{'jerk s':>7} {'bound s':>7} {'fair/LC':>7} {'jerk/LC':>7} {'f/safe':>7} {'viol LC':>9} "
             f"{'viol us':>7}  figures / why")
     lines = [head, "-" * (len(head) + 60)]
@@ -208,41 +206,13 @@ def table(rows: list[Row], lc: dict, us: dict, bounds: dict) -> list[str]:
                      f"jerk {100 * jerk['air']:.1f} %")
         ratio = (lambda x: fmt(x / lc_t)) if lc_t else (lambda x: "-")
         lines.append(f"{row.name:<22} {peer:>4} {fmt(lc_t):>7} {fmt(ideal):>7} {fmt(safe):>7} {fmt(g98):>7} "
-                     f"{fair['time']:>7.3f} {jerk['time']:>7.3f} {fmt(bounds.get(row.name)):>7} "
+                     f"{fair['time']:>7.3f} {fair['predicted']:>7.3f} {jerk['time']:>7.3f} {fmt(bounds.get(row.name)):>7} "
                      f"{ratio(fair['time']):>7} {ratio(jerk['time']):>7} "
                      f"{fmt(safe and fair['time'] / safe):>7} {viol_lc:>9} {viol_us:>7}  {extra}")
         for variant, f in figs.items():
             if "error" in f:
                 lines.append(f"{'':<22} {variant:>4} LinuxCNC error: {f['error']}")
     return lines
-
-
-def ros_check(workdir: Path) -> dict:
-    """Our nodes over topics on config/jobs/drill_row.yaml (cnc-run: bridge and planner as
-    separate processes, recorded to a bag) against the offline path used for the table,
-    planned from the recording's start. DDS stays on this host, in a domain of its own."""
-    env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
-           "ROS_DOMAIN_ID": os.environ.get("ROS_DOMAIN_ID", str(20 + os.getpid() % 80))}
-    job_file = ROOT / "config" / "jobs" / "drill_row.yaml"
-    out = workdir / "ros"
-    cnc_run = Path(sys.executable).parent / "cnc-run"
-    try:
-        subprocess.run([str(cnc_run), str(job_file), "--out", str(out)], env=env, check=True, timeout=240,
-                       stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
-        report = json.loads((out / "report.json").read_text())
-        run = read_run(out / "bag")
-        window = job_window(run, report["job_id"])
-        doc = yaml.safe_load(job_file.read_text())
-        job = parse_job(doc)
-        machine = load_machine(job.machine)
-        start = {j: float(run.feedback[window][0, run.column(j)]) for j in run.joints}
-        t, fb = simulated_feedback(plan_job(job, machine, start), machine)
-        cycle = drill_cycle(job, machine, Kinematics(machine, job.setup, job.tool))
-        offline = analysis.drilling(t, {j: fb[:, k] for k, j in enumerate(("x", "y", "z"))}, cycle)
-        return {"domain": env["ROS_DOMAIN_ID"], "topics_s": report["drill"]["cycle_time_s"],
-                "topics_viol": report["drill"]["safety_violations"], "offline_s": offline["cycle_time_s"]}
-    except Exception as err:  # noqa: BLE001 - a failed check is reported, not fatal
-        return {"error": f"{type(err).__name__}: {err}"}
 
 
 def lc_limits(sessions: dict) -> list[str]:
@@ -272,7 +242,7 @@ def lc_limits(sessions: dict) -> list[str]:
     return out
 
 
-def notes(rows: list[Row], lc: dict, us: dict, sessions: dict, ros: dict) -> list[str]:
+def notes(rows: list[Row], lc: dict, us: dict, sessions: dict) -> list[str]:
     mill, lathe = load_machine("mill3"), load_machine("lathe")
     jerk = ", ".join(f"{m.name} {m.axes['x'].max_jerk:g}" for m in (mill, lathe))
     lines = [
@@ -281,12 +251,13 @@ def notes(rows: list[Row], lc: dict, us: dict, sessions: dict, ros: dict) -> lis
         "  servo our side runs on; ideal s: the same recording as LinuxCNC's sim loops it back (no servo lag).",
         "  safe s: G99 had Z waited at R until X/Y is within 10 um (LC s + its violation samples x 1 ms).",
         "  G98 s: G98 (retract to the start level, 5 mm above the surface) on the drive model. peer: G99/G76/G71.",
-        "fair s / jerk s: our planner on the machine with every max_jerk raised to 1e6 m/s^3 (trapezoids, like",
-        f"  LinuxCNC) / on the normal description (max_jerk m/s^3: {jerk}); drive-model feedback.",
+        "fair s / jerk s: our planner and bridge over topics (both nodes, localhost, recorded joint_states), on the",
+        "  machine with every max_jerk raised to 1e6 m/s^3 (trapezoids, like LinuxCNC) / on the normal description",
+        f"  (max_jerk m/s^3: {jerk}). pred s: the fair run predicted offline (plan + drive model), for comparison.",
         "bound s: lower_bound_time (X/Y positioning + fastest feed and exit below R per hole) at these limits.",
         "fair/LC, jerk/LC, f/safe: ratios of our times to LinuxCNC's (LC s) and to the safe G99 (safe s).",
         "viol: samples (ms) with the tip below R while X/Y is more than 10 um off the hole (analyze_drilling),",
-        "  LinuxCNC G99/G98 and ours fair/jerk, on the drive-model feedback; on LinuxCNC's ideal loop G99 and G98",
+        "  LinuxCNC G99/G98 on the drive-model feedback, ours fair/jerk on the recorded feedback; on LinuxCNC's ideal loop G99 and G98",
         "  have " + _ideal_viol(rows, lc) + ".",
         "Times: first to last axis motion on the positions (analyze_drilling / cnc_servo_bridge.analysis.cycle_time).",
         "Both sides start at the same point (drilling: one pitch before the first hole, 5 mm above the surface;",
@@ -332,15 +303,6 @@ def notes(rows: list[Row], lc: dict, us: dict, sessions: dict, ros: dict) -> lis
                       f"{f['rapid_cut_mm']:.2f} mm, jerk {j['rapid_cut_mm']:.2f} mm.",
                       "  G71 runs the profile as an O-word subroutine (2.9 needs collinear points removed: 'Cannot",
                       "  intersect parallel lines'); its D offsets the profile normal to it, our allowance is radial."]
-    if ros:
-        if "error" in ros:
-            lines += ["", f"Nodes over topics (cnc-run drill_row.yaml) failed: {ros['error']}"]
-        else:
-            lines += ["", "Our nodes over topics (cnc-run config/jobs/drill_row.yaml, "
-                      f"ROS_DOMAIN_ID {ros['domain']}, localhost): {ros['topics_s']:.3f} s, "
-                      f"{ros['topics_viol']} violations;",
-                      "  the offline path this table uses, planned from the recording's start: "
-                      f"{ros['offline_s']:.3f} s."]
     return lines
 
 
@@ -361,7 +323,6 @@ def main() -> int:
     parser.add_argument("--keep", type=Path, help="keep LinuxCNC's work directories here")
     parser.add_argument("--reuse", type=Path, help="analyse the sessions kept in this directory")
     parser.add_argument("--only", help="rows whose name matches this regular expression")
-    parser.add_argument("--no-ros", action="store_true", help="skip the check of our nodes over topics")
     args = parser.parse_args()
     begin = time.monotonic()
 
@@ -380,9 +341,6 @@ def main() -> int:
     worker = threading.Thread(target=run_linuxcnc, args=(rows, workroot, bool(args.reuse), sessions, log))
     worker.start()
     us, bounds = {}, {}
-    ros = {} if args.no_ros else ros_check(tmp)
-    if ros:
-        log(f"nodes over topics: {ros}")
     for row in rows:
         us[row.name] = our_side(row, variants)
         bounds[row.name] = bound(row, variants)
@@ -394,7 +352,7 @@ def main() -> int:
     lines += table(rows, lc, us, bounds)
     if sessions.get("error"):
         lines.append(f"LinuxCNC failed: {sessions['error']}")
-    lines += ["", *notes(rows, lc, us, sessions, ros)]
+    lines += ["", *notes(rows, lc, us, sessions)]
     text = "\n".join(lines) + "\n"
     print(text)
     if not args.only:

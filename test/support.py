@@ -33,3 +33,12 @@ def running_past(session, job_id: str, fraction: float) -> None:
     status = first_running()
     target = status["stamp_ns"] + int((START_DELAY_S + fraction * status["duration_s"]) * 1e9)
     session.spin_until(lambda: session.recorder.sim_ns >= target, 60, f"{job_id} never got to {fraction}")
+
+
+LONG = [{"linear": {"x": 200.0}, "feed": 3000}, {"rapid": {"x": 0}}]  # 4 s of feed at 50 mm/s, then home
+SHORT = [{"rapid": {"x": 5.0}}, {"rapid": {"x": 0.0}}]
+
+
+def move_job(job_id: str, moves: list[dict]) -> str:
+    """A mill3 move job as sent on job_goal (JSON)."""
+    return json.dumps({"schema": "cnc_job/1", "job_id": job_id, "kind": "move", "machine": "mill3", "move": moves})

@@ -14,7 +14,6 @@ from typing import Any
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException, ParameterUninitializedException
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 
 
 @dataclass(frozen=True)
@@ -24,7 +23,7 @@ class Param:
     default: Any
     description: str
     unit: str = ""
-    range: tuple[float, float] | None = None  # inclusive; int bounds give an IntegerRange
+    range: tuple[float, float] | None = None  # inclusive; an IntegerRange for an int default
     read_only: bool = False  # fixed for the node's lifetime (no run-time change supported)
     at_configure: bool = False  # a managed node reads it at configure: set it while unconfigured
 

@@ -1,6 +1,6 @@
 # Two commands do all set-up on a fresh machine (Python 3.11, pip, gcc):
-#   make demo   create .venv if missing, install, run the main job end to end
-#   make test   same set-up, then the whole test suite
+#   make demo   create .venv if missing, install, run the main job end to end (no root needed)
+#   make test   same set-up plus a headless browser (apt, once), then the whole test suite
 # DDS stays on this host; each run picks a domain of its own unless ROS_DOMAIN_ID is set.
 VENV    ?= .venv
 PYTHON  ?= python3
@@ -11,9 +11,10 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 
 .PHONY: setup browser demo cell-demo test bench bench-peer soak clean
 
-setup: $(STAMP) browser
+# The virtual environment with everything from PyPI: all that the demos and benchmarks need.
+setup: $(STAMP)
 
-# Headless Chromium (Debian's package) renders report.html in the tests; installed once.
+# Headless Chromium (Debian's package) renders report.html in the tests only; installed once.
 browser:
 	@command -v chromium >/dev/null 2>&1 || { echo "installing chromium (apt)"; \
 	  export DEBIAN_FRONTEND=noninteractive; apt-get update -qq >/dev/null && \
@@ -34,7 +35,7 @@ cell-demo: setup
 	$(VENV)/bin/cnc-cell config/jobs/drill_row.yaml config/jobs/move_mill3.yaml \
 	  config/jobs/thread_m12.yaml --out runs/cell-$$(date +%Y%m%d-%H%M%S)
 
-test: setup
+test: setup browser
 	$(PY) -m pytest
 
 bench: setup

@@ -70,3 +70,11 @@ EXAMPLES = {  # job kind -> the example job of that kind in config/jobs
     "turn": "turn_stepped.yaml",
     "path": "path_mill3.yaml",
 }
+
+LONG = [{"linear": {"x": 200.0}, "feed": 3000}, {"rapid": {"x": 0}}]  # 4 s of feed at 50 mm/s, then home
+SHORT = [{"rapid": {"x": 5.0}}, {"rapid": {"x": 0.0}}]
+
+
+def move_job(job_id: str, moves: list[dict]) -> str:
+    """A mill3 move job as sent on job_goal (JSON)."""
+    return json.dumps({"schema": "cnc_job/1", "job_id": job_id, "kind": "move", "machine": "mill3", "move": moves})

@@ -2,24 +2,14 @@
 a final status with the reason, and the next job running normally afterwards."""
 from __future__ import annotations
 
-import json
-
 import numpy as np
 
 from cnc_planner.runner import Session
 from cnc_servo_bridge.recording import read_run
 
-from support import running_past
+from support import LONG, SHORT, move_job, running_past
 
 ACCEL_X = 9.8  # mill3 x max_acceleration, m/s^2
-
-
-def move_job(job_id: str, moves: list[dict]) -> str:
-    return json.dumps({"schema": "cnc_job/1", "job_id": job_id, "kind": "move", "machine": "mill3", "move": moves})
-
-
-LONG = [{"linear": {"x": 200.0}, "feed": 3000}, {"rapid": {"x": 0}}]
-SHORT = [{"rapid": {"x": 5.0}}, {"rapid": {"x": 0.0}}]
 
 
 def comes_to_rest(run, after_s: float) -> bool:

@@ -14,6 +14,13 @@ nav2_simple_commander (in snake_case, without a polling loop or thread of its ow
     final = client.wait(job_id, timeout=120.0)              # spins the node until final
     print(final["state"], final["cycle_time_s"])
 
+The bridge is a managed (lifecycle) node; a cell controller takes a machine down and up
+again through its standard lifecycle services::
+
+    client.bridge_transition("deactivate")   # controlled stop, the running job aborts
+    client.bridge_transition("activate")     # drives on: the next job may run
+    client.bridge_state()                    # 'active'
+
 A job is validated whole with the planner's own ``parse_job`` before it is sent, so a bad
 job raises ``JobError`` naming the field and nothing reaches ``job_goal``. Statuses are
 ``cnc_status/1`` documents (as dicts); ``wait`` and ``submit`` spin the node (or the
@@ -41,7 +48,7 @@ MATCH_OTHERS_S = 1.0  # then, at most this long for the other listeners on job_g
 
 
 class CncClientError(RuntimeError):
-    """The planner could not be reached (no planner on the namespace's job_goal)."""
+    """The planner or bridge could not be reached, or the bridge refused a transition."""
 
 
 class CncClient:
@@ -71,6 +78,7 @@ class CncClient:
         self._statuses: dict[str, dict] = {}  # latest status per job submitted here
         self._submitted: set[str] = set()
         self._callbacks: list[Callable[[dict], None]] = []
+        self._bridge_services: dict[str, Any] = {}  # lifecycle service clients, made when first used
 
     # -- the task API -------------------------------------------------------------------
 
@@ -146,7 +154,51 @@ class CncClient:
                and time.monotonic() < deadline):
             self._spin_once(0.02)
 
+    def bridge_transition(self, transition: str, timeout: float = CONNECT_TIMEOUT_S) -> str:
+        """Ask the bridge for a lifecycle transition by its label (configure, activate,
+        deactivate, cleanup, shutdown), over ``<namespace>/cnc_servo_bridge/change_state``;
+        returns the state it is in afterwards ('inactive', 'active', ...).
+
+        Raises:
+            CncClientError: no bridge answered within ``timeout`` s, or it refused the
+                transition (not available from its state, or the transition failed).
+        """
+        from lifecycle_msgs.srv import ChangeState
+
+        request = ChangeState.Request()
+        request.transition.label = transition
+        if not self._call_bridge(ChangeState, "change_state", request, timeout).success:
+            raise CncClientError(f"the bridge refused '{transition}' (it is {self.bridge_state(timeout)})")
+        return self.bridge_state(timeout)
+
+    def bridge_state(self, timeout: float = CONNECT_TIMEOUT_S) -> str:
+        """The bridge's lifecycle state: unconfigured, inactive, active or finalized.
+
+        Raises:
+            CncClientError: no bridge answered within ``timeout`` s.
+        """
+        from lifecycle_msgs.srv import GetState
+
+        return self._call_bridge(GetState, "get_state", GetState.Request(), timeout).current_state.label
+
     # -- internals ----------------------------------------------------------------------
+
+    def _call_bridge(self, service_type: Any, service: str, request: Any, timeout: float) -> Any:
+        name = f"{self.namespace}/{topics.BRIDGE_NODE}/{service}"
+        if name not in self._bridge_services:
+            self._bridge_services[name] = self.node.create_client(service_type, name)
+        client = self._bridge_services[name]
+        deadline = time.monotonic() + timeout
+        while not client.service_is_ready():
+            if time.monotonic() > deadline:
+                raise CncClientError(f"no bridge answers on {name} (waited {timeout:g} s)")
+            self._spin_once(0.05)
+        future = client.call_async(request)
+        while not future.done():
+            if time.monotonic() > deadline:
+                raise CncClientError(f"no answer on {name} within {timeout:g} s")
+            self._spin_once(0.05)
+        return future.result()
 
     def _planner_listening(self) -> bool:
         if self._goal_pub.get_subscription_count() == 0:

@@ -11,6 +11,9 @@ DIAGNOSTICS = "/diagnostics"
 INJECT_FAULT = "inject_fault"  # bridge fault injection (std_msgs/String, JSON)
 ALARM_RESET = "alarm_reset"  # acknowledges a latched bridge alarm (std_msgs/String: who/why)
 CLOCK = "/clock"
+BRIDGE_NODE = "cnc_servo_bridge"  # its lifecycle services: <namespace>/cnc_servo_bridge/change_state, get_state
+DRIVES_KEY = "drives"  # in the bridge's diagnostics: DRIVES_ON (lifecycle active) or DRIVES_OFF
+DRIVES_ON, DRIVES_OFF = "enabled", "disabled"
 
 # Depths: a chunk is ~0.1 s of setpoints; keep a few seconds of them queued.
 TRAJECTORY_DEPTH = 100

@@ -10,6 +10,7 @@ from builtin_interfaces.msg import Duration, Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -17,11 +18,25 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from cnc_msgs_py import qos, topics
 from cnc_msgs_py.machine import load_machine
 from cnc_msgs_py.node import run_node
+from cnc_msgs_py.parameters import Param, declare, value
 from cnc_msgs_py.status import Status, decode_cancel
 from cnc_msgs_py.units import NS
 
 from .executive import Executive, Output, Settings
 from .streaming import Chunk
+
+
+PARAMETERS = {
+    "machine": Param("mill3", "machine description config/machines/<name>.yaml (or a path), the one "
+                              "the bridge drives", read_only=True),
+    "interpolation_period": Param(0.001, "time between setpoints (the bridge's servo_period)", "s",
+                                  (1e-4, 0.01), read_only=True),
+    "chunk_points": Param(100, "setpoints per joint_trajectory chunk", "points", (1, 10000), read_only=True),
+    "lookahead": Param(0.3, "setpoints kept ahead of the feedback, and the longest a cancel waits", "s",
+                       (0.05, 5.0)),
+    "feedback_timeout": Param(2.0, "wall time without joint_states before a running job aborts", "s",
+                              (0.1, 60.0)),
+}
 
 
 def chunk_to_msg(chunk: Chunk) -> JointTrajectory:
@@ -40,13 +55,15 @@ def chunk_to_msg(chunk: Chunk) -> JointTrajectory:
 class PlannerNode(Node):
     def __init__(self) -> None:
         super().__init__("cnc_planner")
-        machine = load_machine(self.declare_parameter("machine", "mill3").value)
+        declare(self, PARAMETERS)
+        machine = load_machine(value(self, "machine"))
         settings = Settings(
-            period_ns=round(self.declare_parameter("interpolation_period", 0.001).value * NS),
-            chunk_points=self.declare_parameter("chunk_points", 100).value,
-            lookahead_ns=round(self.declare_parameter("lookahead", 0.3).value * NS),
+            period_ns=round(value(self, "interpolation_period") * NS),
+            chunk_points=value(self, "chunk_points"),
+            lookahead_ns=round(value(self, "lookahead") * NS),
         )
-        self.feedback_timeout = self.declare_parameter("feedback_timeout", 2.0).value
+        self.feedback_timeout = value(self, "feedback_timeout")
+        self.add_post_set_parameters_callback(self.on_parameters_set)
         self.executive = Executive(machine, settings)
         self.joints = machine.joint_names
         self.status_pub = self.create_publisher(String, topics.JOB_STATUS, qos.JOB_STATUS)
@@ -69,6 +86,14 @@ class PlannerNode(Node):
         self.preparing: deque[Future] = deque()
         self.create_timer(0.02, self.admit_prepared, clock=self.wall)
         self.get_logger().info(f"planning for machine '{machine.name}' joints {self.joints}")
+
+    def on_parameters_set(self, parameters: list[Parameter]) -> None:
+        """The parameters that may change at run time take effect at once."""
+        for parameter in parameters:
+            if parameter.name == "lookahead":
+                self.executive.settings.lookahead_ns = round(parameter.value * NS)
+            elif parameter.name == "feedback_timeout":
+                self.feedback_timeout = parameter.value
 
     def now_ns(self) -> int:
         """The bridge's time, as its latest joint_states says: setpoints are scheduled on
@@ -118,9 +143,11 @@ class PlannerNode(Node):
             mine = status.hardware_id == self.get_namespace()  # not another machine's bridge
             if mine and status.level >= DiagnosticStatus.ERROR and status.name.startswith("cnc_servo_bridge"):
                 # The bridge stops the drives itself; the job ends here, unless the alarm
-                # is an old one that the running job's first setpoints are clearing.
+                # is an old one that the running job's first setpoints are clearing. Drives
+                # disabled (bridge deactivated) end any job, however early its setpoints.
+                disabled = KeyValue(key=topics.DRIVES_KEY, value=topics.DRIVES_OFF) in status.values
                 self.publish(Output(statuses=self.executive.abort(status.message, self.now_ns(), stop=False,
-                                                                  raised_ns=stamp)))
+                                                                  raised_ns=None if disabled else stamp)))
                 if self.executive.active is None:
                     # The job it hit has ended (aborted): acknowledge, so the next one may run.
                     self.reset_pub.publish(String(data="cnc_planner"))

@@ -1,5 +1,11 @@
 """cnc_servo_bridge node: setpoint chunks in, emulated drives, joint_states out.
 
+A managed (lifecycle) node, like a ros2_control hardware component: configure loads and
+checks the machine description and creates the drive model (the axes then report
+joint_states, drives disabled), activate enables the drives (setpoints accepted),
+deactivate is a jerk-limited stop with setpoints refused, cleanup releases the drive
+model, shutdown ends it. With ``autostart`` (the default) it brings itself up to active.
+
 In simulation mode the bridge owns time: it publishes /clock in lockstep with its servo
 steps, runs as fast as setpoints allow while axes move, waits for setpoints (up to
 ``underrun_timeout`` of wall time) rather than starving, and paces idle time to the wall
@@ -15,56 +21,166 @@ import time
 import numpy as np
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rclpy.node import Node
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
+from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory
 
 from cnc_msgs_py import qos, topics
-from cnc_msgs_py.machine import load_machine
+from cnc_msgs_py.machine import MachineError, load_machine
 from cnc_msgs_py.node import run_node
+from cnc_msgs_py.parameters import Param, declare, value
 from cnc_msgs_py.units import NS
 
 from .lockstep import Lockstep
-from .servo import Feedback, ServoLoop
+from .servo import DRIVES_DISABLED, Feedback, ServoLoop
 from .setpoints import SetpointError
+
+PARAMETERS = {
+    "autostart": Param(True, "configure and activate at start-up, as a lifecycle manager would; "
+                             "false: stay unconfigured until change_state", read_only=True),
+    "machine": Param("mill3", "machine description config/machines/<name>.yaml (or a path), "
+                              "the one the planner reads", at_configure=True),
+    "servo_period": Param(0.001, "drive-model step", "s", (1e-4, 0.01), at_configure=True),
+    "simulation": Param(True, "publish /clock and run faster than real time; false: step on "
+                              "the wall clock", at_configure=True),
+    "joint_state_rate": Param(1000.0, "joint_states rate (of sim time in simulation), at most "
+                                      "one per servo step", "Hz", (1.0, 10000.0), at_configure=True),
+    "clock_rate": Param(100.0, "/clock rate in simulation", "Hz", (1.0, 10000.0), at_configure=True),
+    "steps_per_callback": Param(10, "servo steps per timer callback in simulation: few, so that "
+                                    "setpoint chunks (a stop) are taken between batches", "steps",
+                                (1, 1000), at_configure=True),
+    "start_position": Param(Parameter.Type.DOUBLE_ARRAY, "where the axes stand at configure, one value "
+                                                         "per joint in the machine's order (unset: its home)",
+                            "m or rad", at_configure=True),
+    "underrun_timeout": Param(1.0, "wall time to wait for setpoints while the axes move before the "
+                                   "buffer-ran-dry alarm (simulation)", "s", (0.01, 60.0)),
+}
+AT_CONFIGURE = {name for name, param in PARAMETERS.items() if param.at_configure}
+DEACTIVATED = "bridge deactivated: the drives stop (jerk-limited) and refuse setpoints until it is activated"
+SUCCESS, FAILURE = TransitionCallbackReturn.SUCCESS, TransitionCallbackReturn.FAILURE
 
 
 def stamp(t_ns: int) -> Time:
     return Time(sec=t_ns // NS, nanosec=t_ns % NS)
 
 
-class BridgeNode(Node):
+class BridgeNode(LifecycleNode):
     def __init__(self) -> None:
-        super().__init__("cnc_servo_bridge")
-        machine = load_machine(self.declare_parameter("machine", "mill3").value)
-        self.period_ns = round(self.declare_parameter("servo_period", 0.001).value * NS)
-        self.simulation = self.declare_parameter("simulation", True).value
-        rate = self.declare_parameter("joint_state_rate", 1000.0).value
-        self.publish_every = max(1, round(NS / rate / self.period_ns))
-        clock_rate = self.declare_parameter("clock_rate", 100.0).value
-        self.clock_every = max(1, round(NS / clock_rate / self.period_ns))
+        super().__init__(topics.BRIDGE_NODE)
+        declare(self, PARAMETERS)
+        self.add_on_set_parameters_callback(self.on_set_parameters)
+        self.add_post_set_parameters_callback(self.on_parameters_set)
+        self.loop: ServoLoop | None = None  # the drive model, from configure to cleanup
+        self.t_ns: int | None = None  # the next servo step; sim time runs on across cleanup
+        self.failure = ""
+        if value(self, "autostart"):
+            for transition in (self.trigger_configure, self.trigger_activate):
+                if transition() != SUCCESS:
+                    raise ValueError(self.failure or "autostart failed")
+
+    # -- lifecycle transitions -------------------------------------------------------------
+
+    def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Load and check the machine description, create the drive model (drives disabled)."""
+        try:
+            machine = load_machine(value(self, "machine"))
+            self.period_ns = round(value(self, "servo_period") * NS)
+            start = value(self, "start_position") or machine.home_position
+            self.loop = ServoLoop(machine, self.period_ns, np.asarray(start, dtype=float), enabled=False)
+        except (MachineError, ValueError) as err:
+            self.failure = f"configure: {err}"
+            self.get_logger().error(self.failure)
+            return FAILURE
+        self.simulation = value(self, "simulation")
+        self.publish_every = max(1, round(NS / value(self, "joint_state_rate") / self.period_ns))
+        self.clock_every = max(1, round(NS / value(self, "clock_rate") / self.period_ns))
         # Few steps per callback so that setpoint chunks (a stop!) are taken between batches.
-        self.max_steps = self.declare_parameter("steps_per_callback", 10).value
-        start = self.declare_parameter("start_position", list(machine.home_position)).value
-        self.loop = ServoLoop(machine, self.period_ns, np.asarray(start, dtype=float))
+        self.max_steps = value(self, "steps_per_callback")
         self.joints = list(machine.joint_names)
         self.state_pub = self.create_publisher(JointState, topics.JOINT_STATES, qos.JOINT_STATES)
         self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS)
         self.clock_pub = self.create_publisher(Clock, topics.CLOCK, qos.CLOCK) if self.simulation else None
-        self.create_subscription(JointTrajectory, topics.JOINT_TRAJECTORY, self.on_trajectory, qos.JOINT_TRAJECTORY)
-        # Fault injection for tests and commissioning: {"joint": "x", "offset": 0.005} (m or rad).
-        self.create_subscription(String, topics.INJECT_FAULT, self.on_inject, qos.INJECT_FAULT)
-        self.create_subscription(String, topics.ALARM_RESET, self.on_reset, qos.ALARM_RESET)
+        self.inputs = [
+            self.create_subscription(JointTrajectory, topics.JOINT_TRAJECTORY, self.on_trajectory, qos.JOINT_TRAJECTORY),
+            # Fault injection for tests and commissioning: {"joint": "x", "offset": 0.005} (m or rad).
+            self.create_subscription(String, topics.INJECT_FAULT, self.on_inject, qos.INJECT_FAULT),
+            self.create_subscription(String, topics.ALARM_RESET, self.on_reset, qos.ALARM_RESET),
+        ]
         self.reported_alarm = ""
-        self.t_ns = 0 if self.simulation else self.get_clock().now().nanoseconds // self.period_ns * self.period_ns
+        if not self.simulation:
+            self.t_ns = self.get_clock().now().nanoseconds // self.period_ns * self.period_ns
+        elif self.t_ns is None:
+            self.t_ns = 0
+        else:  # configured again: sim time goes on from the last step, on the new grid
+            self.t_ns = -(-self.t_ns // self.period_ns) * self.period_ns
         self.steps = 0
         self.rejected = ""
-        self.lockstep = Lockstep(self.period_ns, self.declare_parameter("underrun_timeout", 1.0).value,
-                                 self.t_ns, time.monotonic())
-        self.create_timer(0.001, self.run)
-        self.get_logger().info(f"driving '{machine.name}' ({'simulation' if self.simulation else 'real time'})")
+        self.lockstep = Lockstep(self.period_ns, value(self, "underrun_timeout"), self.t_ns, time.monotonic())
+        self.timer = self.create_timer(0.001, self.run)
+        self.get_logger().info(f"configured for '{machine.name}' ({'simulation' if self.simulation else 'real time'})"
+                               ", drives disabled")
+        return SUCCESS
+
+    def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Drives on: setpoints are accepted."""
+        self.loop.enable()
+        self.get_logger().info("active: drives enabled")
+        self.publish_diagnostics()
+        return SUCCESS
+
+    def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Drives off: a jerk-limited stop, setpoints refused; the planner hears why."""
+        self.loop.disable(self.t_ns)
+        self.get_logger().warning(DEACTIVATED)
+        self.publish_diagnostics(event=DEACTIVATED)
+        return SUCCESS
+
+    def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.release()
+        return SUCCESS
+
+    def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.release()
+        return SUCCESS
+
+    def on_error(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.get_logger().error(f"error in transition from '{state.label}': drive model released")
+        self.release()
+        return SUCCESS
+
+    def release(self) -> None:
+        """Drop the drive model, its timer, topics and subscriptions (back to unconfigured)."""
+        if self.loop is None:
+            return
+        self.destroy_timer(self.timer)
+        for subscription in self.inputs:
+            self.destroy_subscription(subscription)
+        for publisher in (self.state_pub, self.diag_pub, self.clock_pub):
+            if publisher is not None:
+                self.destroy_publisher(publisher)
+        self.loop = None
+
+    # -- parameters ------------------------------------------------------------------------
+
+    def on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
+        """Parameters read at configure may change only while unconfigured (ranges and
+        read-only are rclpy's own checks, from the descriptors)."""
+        late = [p.name for p in parameters if p.name in AT_CONFIGURE]
+        if late and self.loop is not None:
+            return SetParametersResult(successful=False, reason=f"{', '.join(late)}: read at configure; "
+                                                                "deactivate and cleanup the bridge first")
+        return SetParametersResult(successful=True)
+
+    def on_parameters_set(self, parameters: list[Parameter]) -> None:
+        for parameter in parameters:
+            if parameter.name == "underrun_timeout" and self.loop is not None:
+                self.lockstep.underrun_timeout_s = parameter.value
+
+    # -- topics ----------------------------------------------------------------------------
 
     def on_trajectory(self, msg: JointTrajectory) -> None:
         head = msg.header.stamp.sec * NS + msg.header.stamp.nanosec
@@ -118,14 +234,18 @@ class BridgeNode(Node):
         msg.header.stamp = stamp(feedback.stamp_ns)
         self.state_pub.publish(msg)
 
-    def publish_diagnostics(self) -> None:
-        alarm = self.loop.alarm or self.rejected
+    def publish_diagnostics(self, event: str = "") -> None:
+        """The drives' state; ``event``: an error to report once (a deactivation)."""
+        alarm = self.loop.alarm or self.rejected or event
+        enabled = self.loop.enabled
         status = DiagnosticStatus(
             # Refused setpoints are an error too: the trajectory they belonged to cannot run.
-            level=DiagnosticStatus.ERROR if alarm else DiagnosticStatus.OK,
+            # Drives disabled without an error is a warning: the bridge works, but will not move.
+            level=DiagnosticStatus.ERROR if alarm else DiagnosticStatus.OK if enabled else DiagnosticStatus.WARN,
             name="cnc_servo_bridge: drives", hardware_id=self.get_namespace(),
-            message=alarm or "ok",
-            values=[KeyValue(key="buffer_s", value=f"{self.loop.buffer.level_s(self.t_ns):.3f}")]
+            message=alarm or ("ok" if enabled else DRIVES_DISABLED),
+            values=[KeyValue(key=topics.DRIVES_KEY, value=topics.DRIVES_ON if enabled else topics.DRIVES_OFF),
+                    KeyValue(key="buffer_s", value=f"{self.loop.buffer.level_s(self.t_ns):.3f}")]
             + [KeyValue(key=f"max_following_error.{j}", value=f"{e:.9f}")
                for j, e in zip(self.joints, self.loop.max_following_error)],
         )

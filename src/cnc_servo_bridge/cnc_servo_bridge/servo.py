@@ -4,6 +4,10 @@ One ``step`` per servo period. The reference comes from the setpoint buffer; whe
 buffer runs dry while the axes still move (planner gone) or an axis trips its following
 error limit, the loop raises an alarm and brings every joint to a jerk-limited stop
 (ruckig) from the reference it was following, then holds.
+
+The drives are enabled or not (the bridge node's lifecycle: active or inactive). Disabling
+them is the same jerk-limited stop without an alarm; disabled, the loop holds, still
+reports feedback, and refuses setpoints with the reason.
 """
 from __future__ import annotations
 
@@ -18,6 +22,8 @@ from .drive import DriveModel
 from .setpoints import REST_VELOCITY, SetpointBuffer, SetpointError
 from .stop import velocity_trajectory
 
+DRIVES_DISABLED = "drives disabled (bridge inactive): activate the bridge to accept setpoints"
+
 
 @dataclass
 class Feedback:
@@ -29,18 +35,31 @@ class Feedback:
     following_error: np.ndarray
 
 
+def _check_start(machine: Machine, start: np.ndarray) -> None:
+    """Where the axes stand at power-up: one value per joint, inside the travel."""
+    joints = machine.joint_names
+    if start.shape != (len(joints),):
+        raise ValueError(f"start_position: {start.size} values for the {len(joints)} joints {', '.join(joints)}")
+    for joint, position in zip(joints, start):
+        if not machine.axes[joint].within_travel(position):
+            raise ValueError(f"start_position: {joint} at {position:g} is outside its travel")
+
+
 class ServoLoop:
-    def __init__(self, machine: Machine, servo_period_ns: int, start_position: np.ndarray | None = None):
+    def __init__(self, machine: Machine, servo_period_ns: int, start_position: np.ndarray | None = None,
+                 enabled: bool = True):
         self.machine = machine
         self.joints = machine.joint_names
         self.period_ns = servo_period_ns
         self.drives = DriveModel(machine, servo_period_ns / 1e9)
         self.buffer = SetpointBuffer(machine)
         start = np.zeros(len(self.joints)) if start_position is None else np.asarray(start_position, float)
+        _check_start(machine, start)
         self.drives.reset(start)
         zero = np.zeros(len(self.joints))
         self.reference = (start.copy(), zero.copy(), zero.copy())
         self.alarm = ""
+        self.enabled = enabled
         self.max_following_error = np.zeros(len(self.joints))
         self._stop: tuple[Trajectory, int] | None = None
         axes = [machine.axes[j] for j in self.joints]
@@ -54,10 +73,26 @@ class ServoLoop:
         """Validate and buffer a chunk. Raises SetpointError (the diagnostic) if refused.
 
         ``now_ns``: the next step, not taken yet: the earliest a chunk may start."""
+        if not self.enabled:
+            raise SetpointError(DRIVES_DISABLED)
         if self.alarm:
             raise SetpointError(f"alarm latched ({self.alarm}): waiting for alarm_reset")
+        if self._stop is not None:
+            raise SetpointError("stopping: setpoints are taken once the axes stand still")
         setpoints = self.buffer.validate(names, times_ns, p, v, a, now_ns, self.reference[:2])
         self.buffer.insert(setpoints)
+
+    def disable(self, now_ns: int) -> None:
+        """Drives off (deactivate): a jerk-limited stop from the reference being followed,
+        what was buffered dropped, setpoints refused until ``enable``. An alarm's stop
+        already running goes on. ``now_ns``: the next step, not taken yet."""
+        self.enabled = False
+        if self._stop is None:
+            self._begin_stop(now_ns - self.period_ns)  # the reference is one period old
+
+    def enable(self) -> None:
+        """Drives on (activate): setpoints are accepted again once any stop has run out."""
+        self.enabled = True
 
     def reset_alarm(self) -> bool:
         """Acknowledge a latched alarm once the axes have stopped; True if it cleared."""
@@ -126,6 +161,10 @@ class ServoLoop:
     def _raise(self, t_ns: int, alarm: str) -> None:
         """Latch an alarm and stop every joint from the current reference."""
         self.alarm = alarm
+        self._begin_stop(t_ns)
+
+    def _begin_stop(self, t_ns: int) -> None:
+        """Drop the buffer; bring every joint to rest from the reference taken at ``t_ns``."""
         self.buffer.clear()
         p, v, a = self.reference
         zero = [0.0] * len(self.joints)

@@ -8,7 +8,7 @@ import pytest
 from ruckig import ControlInterface, InputParameter, Ruckig, Trajectory
 
 from cnc_msgs_py.machine import load_machine
-from cnc_servo_bridge.servo import ServoLoop
+from cnc_servo_bridge.servo import DRIVES_DISABLED, ServoLoop
 from cnc_servo_bridge.setpoints import SetpointError
 
 MILL = load_machine("mill3")
@@ -173,6 +173,42 @@ def test_the_alarm_latches_until_reset_after_the_stop_then_a_new_chunk_runs():
     assert measured[-1, :2] == pytest.approx(stopped[:2] + [-0.01, 0.01], abs=1e-7)
 
 
+def test_disabling_mid_motion_stops_jerk_limited_without_alarm_and_refuses_setpoints():
+    loop, _, p = cruising_loop()
+    _, _, _, before = run(loop, 0, 200)  # x cruises at 0.1 m/s, y at -0.05 m/s by now
+    now = 200 * MS
+    loop.disable(now)
+    held = before[0][-1]
+    with pytest.raises(SetpointError, match="drives disabled"):
+        loop.accept(JOINTS, np.array([now + 10 * MS]), held[None, :], np.zeros((1, 4)), np.zeros((1, 4)), now)
+    _, measured, _, after = run(loop, now, 300)
+    ref = [np.vstack([b, c]) for b, c in zip(before, after)]
+    # the stop continues the reference that was followed (no jump), within every limit
+    assert_within_limits(ref[0])
+    speed = np.abs(after[1][:, 0])
+    assert np.all(np.diff(speed) <= 1e-12) and speed[-1] == 0.0
+    braking = 2 * np.sqrt(0.1 / 200.0)  # as for the underrun stop above: 44.7 ms on x
+    assert np.count_nonzero(speed) * DT == pytest.approx(braking, abs=1.5 * DT)
+    assert after[0][-1, 0] - held[0] == pytest.approx(0.1 * braking / 2, rel=0.05)
+    assert after[0][-1, 0] < p[-1, 0]  # short of where the buffered setpoints went
+    assert measured[-1, :2] == pytest.approx(after[0][-1, :2], abs=1e-6)  # the drives at rest there
+    assert loop.alarm == "" and loop.at_rest and not loop.enabled
+
+
+def test_enabled_again_the_loop_takes_setpoints_from_where_it_stopped():
+    loop = ServoLoop(MILL, MS, start_position=np.array([0.1, 0.0, 0.0, 0.0]), enabled=False)
+    p, v, a = ruckig_reference(target=[0.02, 0.0, 0.0, 0.0])
+    with pytest.raises(SetpointError) as refused:
+        feed(loop, p + [0.1, 0, 0, 0], v, a, start_ns=10 * MS, now_ns=0)
+    assert str(refused.value) == DRIVES_DISABLED
+    _, measured, _, _ = run(loop, 0, 50)  # disabled, it holds and still reports feedback
+    assert measured[-1] == pytest.approx([0.1, 0.0, 0.0, 0.0], abs=1e-6)
+    loop.enable()
+    feed(loop, p + [0.1, 0, 0, 0], v, a, start_ns=60 * MS, now_ns=50 * MS)
+    _, measured, _, _ = run(loop, 50 * MS, 10 + len(p) + 200)
+    assert measured[-1, 0] == pytest.approx(0.12, abs=1e-6) and loop.alarm == ""
+
+
 def test_following_error_trip_raises_an_alarm_and_stops():
     tight = dataclasses.replace(MILL.drives["y"], following_error_limit=2e-5)
     machine = dataclasses.replace(MILL, drives={**MILL.drives, "y": tight})
@@ -203,3 +239,10 @@ def test_at_rest_without_a_buffer_holds_without_alarm():
     assert np.all(ref[0] == [0.1, -0.1, 0.05, 2.0])
     assert measured[-1] == pytest.approx([0.1, -0.1, 0.05, 2.0], abs=1e-5)
     assert np.abs(errors).max() <= 1e-5
+
+
+@pytest.mark.parametrize("start, field", [([0.0, 0.0, 0.0], "3 values for the 4 joints x, y, z, spindle"),
+                                          ([0.0, 0.7, 0.0, 0.0], "y at 0.7 is outside its travel")])
+def test_a_start_position_that_does_not_fit_the_machine_is_refused(start, field):
+    with pytest.raises(ValueError, match=f"start_position: {field}"):
+        ServoLoop(MILL, MS, start_position=np.array(start))

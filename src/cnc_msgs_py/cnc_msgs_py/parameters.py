@@ -1,0 +1,66 @@
+"""ROS parameters with descriptors: each node lists its parameters once, in one table.
+
+A ``Param`` says what ``ros2 param describe`` shows: the meaning, the unit, the allowed
+range and when a change takes effect. rclpy itself refuses a set outside the range
+(``SetParametersResult(successful=False, reason=...)``) and any set of a read-only
+parameter; a managed node refuses changes to ``at_configure`` parameters unless it is
+unconfigured. A value out of range at start-up stops the node with one line naming it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException, ParameterUninitializedException
+from rclpy.node import Node
+
+
+@dataclass(frozen=True)
+class Param:
+    """One parameter: ``default`` (a value, or a ``Parameter.Type`` for "unset")."""
+
+    default: Any
+    description: str
+    unit: str = ""
+    range: tuple[float, float] | None = None  # inclusive; an IntegerRange for an int default
+    read_only: bool = False  # fixed for the node's lifetime (no run-time change supported)
+    at_configure: bool = False  # a managed node reads it at configure: set it while unconfigured
+
+    def descriptor(self) -> ParameterDescriptor:
+        unit = f" [{self.unit}]" if self.unit else ""
+        when = ("fixed at start-up" if self.read_only else
+                "read at configure: may be set only while the node is unconfigured" if self.at_configure else
+                "may be changed at run time")
+        descriptor = ParameterDescriptor(description=self.description + unit, read_only=self.read_only,
+                                         additional_constraints=when)
+        if self.range is not None:
+            lo, hi = self.range
+            if isinstance(self.default, int) and not isinstance(self.default, bool):
+                descriptor.integer_range = [IntegerRange(from_value=int(lo), to_value=int(hi), step=1)]
+            else:
+                descriptor.floating_point_range = [FloatingPointRange(from_value=float(lo), to_value=float(hi))]
+        return descriptor
+
+
+def declare(node: Node, table: dict[str, Param]) -> None:
+    """Declare every parameter of ``table`` on ``node`` with its descriptor.
+
+    Raises:
+        ValueError: a value given at start-up (``-p``, a params file) is out of range
+            or of the wrong type; the message names the parameter.
+    """
+    for name, param in table.items():
+        try:
+            node.declare_parameter(name, param.default, param.descriptor())
+        except (InvalidParameterValueException, InvalidParameterTypeException) as err:
+            raise ValueError(f"parameter '{name}': {err}") from err
+
+
+def value(node: Node, name: str) -> Any:
+    """A declared parameter's value; None if it was declared without one and never set."""
+    try:
+        return node.get_parameter(name).value
+    except ParameterUninitializedException:
+        return None
+

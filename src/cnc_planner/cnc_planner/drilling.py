@@ -75,8 +75,10 @@ XY_COMMAND_LEAD = XY_LEAD_PERIODS - XY_FIXED_PERIODS + 1  # periods: from its la
 XY_SETTLED_COUNTS = 0.25  # encoder counts: an X/Y correction below this has settled
 BOTTOM_ROUNDS = 3  # drive-model rounds placing the Z command's turning point at a hole's bottom
 BOTTOM_STEADY_S = 0.3  # s of steady feed before R in those rounds: the drive settles into it
-XY_HEADROOM_ROUNDS = 4  # rounds of slowing an S1 move until its compensated command fits
-XY_HEADROOM_MARGIN = 0.98  # of the limits: the compensated command aims this far inside them
+XY_ACCELERATION_SHARES = (1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3)  # of an S1 move's limits,
+XY_JERK_SHARES = (1.0, 0.3, 0.1, 0.03, 0.01, 3e-3, 1e-3, 3e-4)  # tried fastest first
+XY_HEADROOM_TRIES = 24  # moves tried before the plain (uncompensated) one
+XY_HEADROOM_MARGIN = 0.99  # of the limits: the compensated command stays this far inside them
 
 
 @dataclass(frozen=True)
@@ -325,14 +327,14 @@ class _Job:
 def _xy_move(machine: Machine, p0: tuple[float, float], p1: tuple[float, float], tol: float,
              shares: tuple[float, float] = (1.0, 1.0)) -> _XYMove:
     """S1 as the builder's rapid will plan it, with its command's tolerance crossings;
-    ``shares`` of the velocity and of the acceleration and jerk limits leave headroom for
-    the drive compensation (_xy_headroom)."""
+    ``shares`` of the acceleration and of the jerk limits leave headroom for the drive
+    compensation (_xy_headroom)."""
     target = dict(zip(XY, p1))
     joints = [j for j, a, b in zip(XY, p0, p1) if abs(a - b) > 1e-12]
     if not joints:
         return _XYMove(target, None, math.inf, 0.0)
     limits = [axis_limits(machine.axes[j]) for j in joints]
-    limits = [Limits(lim.velocity * shares[0], lim.acceleration * shares[1], lim.jerk * shares[1]) for lim in limits]
+    limits = [Limits(lim.velocity, lim.acceleration * shares[0], lim.jerk * shares[1]) for lim in limits]
     move = point_to_point([dict(zip(XY, p0))[j] for j in joints], [target[j] for j in joints], limits)
     ts = np.arange(0.0, move.duration + FINE_STEP, FINE_STEP)
     p = move.sample_all(np.minimum(ts, move.duration))[0]
@@ -349,17 +351,19 @@ def _xy_move(machine: Machine, p0: tuple[float, float], p1: tuple[float, float],
 
 def _xy_headroom(machine: Machine, period: float, xy: _XYMove, p0: tuple[float, float],
                  p1: tuple[float, float], tol: float) -> tuple[tuple[float, float], np.ndarray | None]:
-    """Limit shares of one S1 move and its correction such that the compensated command
-    stays within the axis limits: the move is planned slower by what the correction adds
-    on top of it, a few rounds; if that does not converge, the plain move (no correction,
-    within the limits by construction) and the timing search waits for the feedback."""
-    shares = (1.0, 1.0)
-    for _ in range(XY_HEADROOM_ROUNDS):
-        correction, (over_v, over_a) = _xy_correction(machine, period, xy)
-        if over_v <= 1.0 and over_a <= 1.0:
+    """Shares of the acceleration and jerk limits for one S1 move, and its correction,
+    such that the compensated command stays within the axis limits: the fastest move of
+    a grid of shares whose command fits. The correction leads the motion by the drive's
+    lag, so it adds about lag x jerk to the acceleration: a lower jerk usually buys the
+    headroom for less time than a lower acceleration. If none fits in XY_HEADROOM_TRIES,
+    the plain move (no correction, within the limits by construction): the timing
+    search then waits for the feedback."""
+    grid = [(a, j) for a in XY_ACCELERATION_SHARES for j in XY_JERK_SHARES]
+    moves = sorted(((_xy_move(machine, p0, p1, tol, shares), shares) for shares in grid), key=lambda m: m[0].duration)
+    for candidate, shares in moves[:XY_HEADROOM_TRIES]:
+        correction, (over_v, over_a) = _xy_correction(machine, period, candidate)
+        if over_v <= XY_HEADROOM_MARGIN and over_a <= XY_HEADROOM_MARGIN:
             return shares, correction
-        shares = (shares[0] * min(1.0, XY_HEADROOM_MARGIN / over_v), shares[1] * min(1.0, XY_HEADROOM_MARGIN / over_a))
-        xy = _xy_move(machine, p0, p1, tol, shares)
     return (1.0, 1.0), None
 
 

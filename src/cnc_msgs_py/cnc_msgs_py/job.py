@@ -75,7 +75,7 @@ OUTLINE = List(OutlineEntry(), min_len=2, max_len=MAX_LIST)
 
 VIBRATION = Obj({
     "D": Num("1", gt=0.0, max=50.0, default=None),
-    "Q": Num("1", gt=0.0, max=20.0),
+    "Q": Num("1", gt=0.0, max=20.0, default=None),  # required with D; optional with E and R
     "E": Num("1", gt=0.0, max=50.0, default=None),
     "R": Num("1", gt=0.0, max=50.0, default=None),
     "phase_shift": Num("deg", min=-360.0, max=360.0, default=0.0),
@@ -91,6 +91,7 @@ DRILL = Obj({
     "overlap": Str(("auto", "off"), default="auto"),
     "mode": Either((Str(("auto",)), Num("1", min=1, max=3, integer=True)), "auto, 1, 2 or 3", default="auto"),
     "gentle_air_accel": Bool(default=False),
+    "dwell": Num("1", min=0.0, max=60.0, default=0.0),  # s at the bottom of every hole (G82)
 }, default=None)
 
 MOVE_TARGET = Obj({k: Num("mm", default=None) for k in AXIS_KEYS})
@@ -141,7 +142,7 @@ JOB = Obj({
     "machine": Str(pattern=r"[A-Za-z0-9_.-]{1,64}"),
     "tool": Obj({
         "length": Num("mm", min=0.0, max=1000.0, default=0.0),
-        "diameter": Num("mm", gt=0.0, max=500.0, default=None),
+        "diameter": Num("mm", min=0.0, max=500.0, default=None),  # 0: a lathe tool (D0)
         "nose_radius": Num("mm", min=0.0, max=10.0, default=0.0),
     }, default={}),
     "setup": Obj({
@@ -162,6 +163,24 @@ JOB = Obj({
 
 # Fields each kind needs besides its own block.
 NEEDS_SPINDLE = ("drill", "turn", "thread")
+LATHE_KINDS = ("turn", "thread")  # their tools may have diameter 0 (D0 in lathe tool tables)
+# Keys a kind has no use for: given anyway, they are refused by name, never ignored.
+# (The blocks of the other kinds are refused in _check_kind; path refuses a vibration.)
+UNUSED_KEYS = {
+    "drill": ("tool.nose_radius", "vibration.phase_shift", "vibration.D_step"),
+    "move": ("vibration.phase_shift", "vibration.D_step"),
+    "turn": ("vibration.phase_shift", "vibration.D_step"),
+    "thread": (),
+    "path": ("vibration.phase_shift", "vibration.D_step"),
+}
+UNUSED_WHY = {
+    "tool.nose_radius": "a drill has no nose radius (it is a lathe insert's)",
+    "vibration.phase_shift": "only a thread shifts the vibration phase from pass to pass",
+    "vibration.D_step": "only a thread raises D from pass to pass",
+}
+# Drill keys that only the overlapped cycle uses.
+OVERLAP_ONLY = {"mode": "the conventional cycle (overlap: off) has no retract modes",
+                "gentle_air_accel": "the conventional cycle (overlap: off) has no air arc"}
 
 
 def _mm(value_m: float) -> str:
@@ -245,6 +264,11 @@ def _check_kind(job: SimpleNamespace) -> None:
             raise JobError("vibration", "give either D or E and R, not both")
         if vib.E is not None and vib.R is not None and vib.R >= vib.E:
             raise JobError("vibration.R", "revolutions in retreat must be fewer than E")
+        if vib.D is not None and vib.Q is None:
+            raise JobError("vibration.Q", "required with D (amplitude = Q * feed per rev)")
+        if vib.Q is None and not 2.0 * vib.R < vib.E:
+            raise JobError("vibration.R", f"without Q the forward stroke and the retreat run at equal speed, "
+                                          f"which needs R < E/2 = {vib.E / 2:g}; give Q as well")
         if kind == "move" and job.spindle_rpm <= 0.0:
             raise JobError("spindle_rpm", "must be > 0 when a vibration is given")
     if kind == "turn":
@@ -265,6 +289,29 @@ def _check_kind(job: SimpleNamespace) -> None:
         raise JobError("path.tool_axis", "needs one vector per point")
 
 
+def _given(doc: dict, dotted: str) -> bool:
+    """Whether the raw document gives a value (not null) at a dotted key path."""
+    node: Any = doc
+    for key in dotted.split("."):
+        if not isinstance(node, dict) or node.get(key) is None:
+            return False
+        node = node[key]
+    return True
+
+
+def _check_unused(doc: dict, job: SimpleNamespace) -> None:
+    """A key the job's kind does not use is an error naming it: nothing given is ignored."""
+    for key in UNUSED_KEYS[job.kind]:
+        if _given(doc, key):
+            raise JobError(key, f"not used by a {job.kind} job: {UNUSED_WHY[key]}")
+    if job.tool.diameter == 0.0 and job.kind not in LATHE_KINDS:
+        raise JobError("tool.diameter", f"must be > 0 mm for a {job.kind} job (0, D0, is a lathe tool's)")
+    if job.kind == "drill" and job.drill.overlap == "off":
+        for key, why in OVERLAP_ONLY.items():
+            if _given(doc, f"drill.{key}"):
+                raise JobError(f"drill.{key}", f"not used: {why}")
+
+
 def parse_job(doc: Any) -> SimpleNamespace:
     """Validate a whole job document and return it in SI units.
 
@@ -276,6 +323,7 @@ def parse_job(doc: Any) -> SimpleNamespace:
     """
     job = JOB.check(doc, "")
     _check_kind(job)
+    _check_unused(doc, job)
     return job
 
 

@@ -52,13 +52,13 @@ from typing import Callable
 import numpy as np
 from ruckig import ControlInterface, InputParameter
 
-from cnc_msgs_py.machine import Machine
+from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_servo_bridge.drive import DriveModel
 
 from .builder import PlanBuilder
 from .motion import Limits, RuckigMove, axis_limits, calculate, point_to_point
 from .timeline import Piece, Plan
-from .vibration import COMPENSATION_TAIL, learn_correction, settled
+from .vibration import COMPENSATION_TAIL, Vibration, VibrationFeed, learn_correction, settled
 
 # Conventional cycle: X/Y travel at R + 1 mm (G99 returns to R; the 1 mm keeps the tip
 # above R on feedback too, where Z reads up to ~0.3 mm below its command while braking).
@@ -97,6 +97,9 @@ class DrillCycle:
     xy_tolerance: float = 1e-5
     servo_period: float = 1e-3
     compensate_xy: bool = True
+    vibration: Vibration | None = None
+    spindle_speed: float = 0.0
+    dwell: float = 0.0
 
     def __post_init__(self) -> None:
         if not self.holes:
@@ -109,6 +112,10 @@ class DrillCycle:
             raise ValueError(f"mode: expected None, 1, 2 or 3, got {self.mode!r}")
         if self.xy_tolerance <= 0 or self.servo_period <= 0:
             raise ValueError("xy_tolerance and servo_period must be > 0")
+        if self.vibration is not None and not self.spindle_speed > 0:
+            raise ValueError("spindle_speed: a vibrated feed needs a turning spindle")
+        if self.dwell < 0:
+            raise ValueError("dwell: must be >= 0")
 
 
 def _z_move(lim: Limits, p0: float, v0: float, a0: float, p1: float | None = None,
@@ -189,6 +196,7 @@ class _Job:
         self.feed_stroke = _z_move(Limits(cycle.feed, self.z.acceleration, self.z.jerk),
                                    cycle.r_z, -cycle.feed, 0.0, cycle.bottom_z)
         self.fast = self._fast_exit()
+        self._vibrated: dict[float, VibrationFeed] = {}
         position = (start["x"], start["y"])
         self.xy: list[_XYMove] = []
         corrections: dict[tuple, np.ndarray] = {}
@@ -220,7 +228,51 @@ class _Job:
             duration: float = 0.0) -> RuckigMove:
         """The air move from a state at R (or the start) to R at cutting feed."""
         lim = Limits(self.z.velocity, accel or self.z.acceleration, self.z.jerk)
-        return _z_move(lim, *state, self.cycle.r_z, -self.cycle.feed, 0.0, duration)
+        return _z_move(lim, *state, self.cycle.r_z, self.entry_velocity, 0.0, duration)
+
+    @property
+    def entry_velocity(self) -> float:
+        """Z velocity at R going down: the cutting feed, or rest where a vibrated feed starts
+        (its waveform ramps up from rest, locked to the spindle angle)."""
+        return 0.0 if self.cycle.vibration is not None else -self.cycle.feed
+
+    def vibrated_stroke(self, builder: PlanBuilder, t_down: float, hole: int) -> float:
+        """S2 below R with the chip-breaking vibration: Z from rest at R to rest at the
+        bottom, the waveform locked to the spindle angle and its command pre-compensated
+        with the drive model (VibrationFeed); returns its end time. Strokes are cached by
+        the spindle angle they start at, since the timing search replans the cycle."""
+        c = self.cycle
+        angle = builder.timelines[SPINDLE].position_at(t_down)
+        key = round(math.fmod(angle, 2 * math.pi), 9)
+        if key not in self._vibrated:
+            z = self.machine.axes["z"]
+            self._vibrated[key] = VibrationFeed(
+                c.r_z - c.bottom_z, c.feed * 2 * math.pi / c.spindle_speed, c.vibration, c.spindle_speed, z,
+                start_angle=angle, servo_period=c.servo_period,
+                drive_model_factory=lambda: DriveModel(self.machine, c.servo_period, ("z",)))
+        move = self._vibrated[key]
+        r_z = c.r_z
+
+        def sample(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            progress, v, a = move.sample(t)
+            return r_z - progress, -v, -a
+
+        builder.timelines["z"].add(Piece(t_down, move.duration, sample), c.bottom_z)
+        builder.event(t_down, "vibration_feed", start=[r_z], direction=[-1.0], joints=["z"],
+                      length=c.r_z - c.bottom_z, feed_per_rev=c.feed * 2 * math.pi / c.spindle_speed,
+                      field="drill", hole=hole)
+        builder.event(t_down + move.duration, "vibration_end", hole=hole)
+        return t_down + move.duration
+
+    def feed_to_depth(self, builder: PlanBuilder, t_down: float, hole: int, plain: Callable[[], float]) -> float:
+        """S2 below R (``plain`` without a vibration), then the dwell at the bottom (G82);
+        returns when Z leaves the bottom."""
+        c = self.cycle
+        end = plain() if c.vibration is None else self.vibrated_stroke(builder, t_down, hole)
+        if c.dwell > 0:
+            builder.timelines["z"].add_hold(end, c.dwell)
+            builder.event(end, "dwell", hole=hole, seconds=c.dwell)
+        return end + c.dwell
 
     def _slow_exit(self, speed: float) -> _Retract | None:
         """Mode 3: reach R at ``speed`` with zero acceleration, or None if that needs an overshoot."""
@@ -408,7 +460,7 @@ def _emit_overlapped(job: _Job, retracts: list[_Retract]) -> Emit:
     """Overlapped cycle: e_down[i] = Z at R after the X/Y command ends, e_up[i] = X/Y start
     after Z passed R up from hole i-1; accel[i] = Z acceleration limit of hole i's air move."""
     c = job.cycle
-    approach_min = _z_move(job.z, job.start["z"], 0.0, 0.0, c.r_z, -c.feed)
+    approach_min = _z_move(job.z, job.start["z"], 0.0, 0.0, c.r_z, job.entry_velocity)
     arc_min = [approach_min.duration] + [job.arc(r.state).duration for r in retracts[:-1]]
     last_mode, last_move, last_t_r, stop = job.last_retract()
 
@@ -439,7 +491,7 @@ def _emit_overlapped(job: _Job, retracts: list[_Retract]) -> Emit:
                 gentle = accel[0] < job.z.acceleration
                 t_air = t0 if gentle else t0 + air_time - arc_min[0]
                 air = (_z_move(Limits(job.z.velocity, accel[0], job.z.jerk), job.start["z"], 0.0, 0.0,
-                               c.r_z, -c.feed, 0.0, t0 + air_time - t_air) if gentle else approach_min)
+                               c.r_z, job.entry_velocity, 0.0, t0 + air_time - t_air) if gentle else approach_min)
             else:
                 t_air = u
                 air = job.arc(retracts[i - 1].state, accel[i], air_time)
@@ -447,7 +499,7 @@ def _emit_overlapped(job: _Job, retracts: list[_Retract]) -> Emit:
             apex = air.trajectory.position_extrema[0]
             builder.event(t_air + apex.t_max, "S2", hole=i, mode=mode)
             builder.event(t_down, "R_down", hole=i, mode=mode)
-            t_s3 = _add_z(builder, t_down, job.feed_stroke)
+            t_s3 = job.feed_to_depth(builder, t_down, i, lambda: _add_z(builder, t_down, job.feed_stroke))
             builder.event(t_s3, "S3", hole=i, mode=mode)
             if last:
                 u = t_s3 + last_t_r
@@ -489,7 +541,8 @@ def _emit_conventional(job: _Job) -> Emit:
             t_down = builder.rapid({"z": c.r_z}, start=t_s2)
             builder.event(t_s2, "S2", hole=i, mode=None)
             builder.event(t_down, "R_down", hole=i, mode=None)
-            t_s3 = builder.linear({"z": c.bottom_z}, c.feed, start=t_down)
+            t_s3 = job.feed_to_depth(builder, t_down, i, lambda: builder.linear({"z": c.bottom_z}, c.feed,
+                                                                                 start=t_down))
             builder.event(t_s3, "S3", hole=i, mode=None)
             up = builder.rapid_move({"z": clearance})
             t_up = t_s3 + _crossing(up, c.r_z)

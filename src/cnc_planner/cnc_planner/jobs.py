@@ -32,7 +32,7 @@ from .path_job import plan_path
 from .timeline import Event, Piece, Plan
 from .thread_cutting import ThreadError, ThreadSpec, check_thread, plan_thread
 from .turning import TurningError, check_outlines, plan_roughing
-from .vibration import Vibration, VibrationError, VibrationFeed
+from .vibration import Vibration, VibrationError, VibrationFeed, check_vibration, equal_speed_q
 
 TWO_PI = 6.283185307179586
 VIBRATION_SERVO_PERIOD = 1e-3  # the bridge's servo period the compensation is computed for
@@ -79,8 +79,19 @@ def _program_axes(machine: Machine, target: SimpleNamespace, field: str) -> list
 
 
 def vibration_of(job: SimpleNamespace) -> Vibration | None:
+    """The job's vibration; E and R without Q take the method's equal-speed waveform
+    (vibration.equal_speed_q)."""
     v = job.vibration
-    return None if v is None else Vibration(D=v.D, Q=v.Q, E=v.E, R=v.R)
+    if v is None:
+        return None
+    q = v.Q if v.Q is not None else equal_speed_q(v.E, v.R)
+    return Vibration(D=v.D, Q=q, E=v.E, R=v.R)
+
+
+def _vibration_error(err: VibrationError) -> JobError:
+    """A VibrationError ('vibration.X: reason') as the JobError naming that field."""
+    name, _, reason = str(err).partition(":")
+    return JobError(name, reason.strip())
 
 
 def feed_move(builder: PlanBuilder, target: dict[str, float], feed_per_rev: float,
@@ -116,10 +127,9 @@ def feed_move(builder: PlanBuilder, target: dict[str, float], feed_per_rev: floa
                              start_angle=builder.timelines[SPINDLE].position_at(start),
                              drive_model_factory=lambda: DriveModel(machine, VIBRATION_SERVO_PERIOD, (lead,)))
     except VibrationError as err:
-        name, _, reason = str(err).partition(":")
-        if not name.startswith("vibration"):  # about the move itself (e.g. its length)
-            name, reason = field, str(err)
-        raise JobError(name, reason.strip()) from err
+        if not str(err).startswith("vibration"):  # about the move itself (e.g. its length)
+            raise JobError(field, str(err)) from err
+        raise _vibration_error(err) from err
     builder.event(start, "vibration_feed", start=p0.tolist(), direction=direction.tolist(),
                   joints=joints, length=length, feed_per_rev=feed_per_rev, field=field)
     for dof, joint in enumerate(joints):
@@ -202,7 +212,20 @@ def drill_cycle(job: SimpleNamespace, machine: Machine, kin: Kinematics) -> Dril
     check_travel(machine, {"z": r_z + RETURN_CLEARANCE}, "drill.r_gap")
     return DrillCycle(holes=holes, surface_z=z_of(d.surface_z), bottom_z=z_of(d.surface_z - d.depth), r_z=r_z,
                       feed=d.feed, overlap=d.overlap != "off", mode=None if d.mode == "auto" else d.mode,
-                      gentle_air_accel=d.gentle_air_accel)
+                      gentle_air_accel=d.gentle_air_accel, dwell=d.dwell, **drill_vibration(job, machine))
+
+
+def drill_vibration(job: SimpleNamespace, machine: Machine) -> dict:
+    """The drill feed's vibration and spindle speed (DrillCycle fields), checked up front
+    like a move's: no air-cut or an axis that cannot follow is refused naming min Q / max rpm."""
+    vibration = vibration_of(job)
+    if vibration is None:
+        return {}
+    try:
+        check_vibration(vibration, job.drill.feed / (job.spindle_rpm / TWO_PI), job.spindle_rpm, machine.axes["z"])
+    except VibrationError as err:
+        raise _vibration_error(err) from err
+    return {"vibration": vibration, "spindle_speed": job.spindle_rpm}
 
 
 def tilted(kin: Kinematics) -> bool:
@@ -238,6 +261,8 @@ class TiltedFrame:
 def tilted_frame(job: SimpleNamespace, machine: Machine, kin: Kinematics) -> TiltedFrame:
     """Rotaries that put the tool along program +Z, the affine map and the program-frame cycle."""
     d = job.drill
+    if job.vibration is not None:
+        raise JobError("vibration", "the drill feed vibrates along the machine's Z only: not in a tilted setup")
     z_axis = [0.0, 0.0, 1.0]
     def joints(point: dict[str, float], field: str, previous: dict[str, float] | None = None) -> dict[str, float]:
         try:
@@ -273,7 +298,7 @@ def tilted_frame(job: SimpleNamespace, machine: Machine, kin: Kinematics) -> Til
                         DrillCycle(holes=[tuple(h) for h in d.holes], surface_z=d.surface_z,
                                    bottom_z=d.surface_z - d.depth, r_z=d.surface_z + d.r_gap, feed=d.feed,
                                    overlap=d.overlap != "off", mode=None if d.mode == "auto" else d.mode,
-                                   gentle_air_accel=d.gentle_air_accel), frame_machine)
+                                   gentle_air_accel=d.gentle_air_accel, dwell=d.dwell), frame_machine)
     c = frame.cycle
     for i, (x, y) in enumerate(d.holes):
         for z, field in ((c.bottom_z, f"drill.holes[{i}]"), (c.r_z + RETURN_CLEARANCE, "drill.r_gap")):
@@ -367,6 +392,10 @@ def _drill(builder: PlanBuilder, cycle: DrillCycle) -> None:
         name, sep, reason = first.partition(": ")
         if sep and re.fullmatch(r"(holes(\[\d+\])?|feed|mode)", name):  # a field of the drill block
             raise JobError(f"drill.{name}", reason) from err
+        if sep and name.startswith("vibration"):
+            raise JobError(name, reason) from err
+        if sep and name == "length":  # a vibrated stroke too short to ramp onto the waveform
+            raise JobError("drill.depth", reason) from err
         raise JobError("drill", first) from err
 
 

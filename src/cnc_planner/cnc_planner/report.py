@@ -86,7 +86,7 @@ def build_report(run: Run) -> dict:
         report["kinematics"] = path_section(run, job, machine, window)
     if job.kind == "thread":
         report["thread"] = thread_section(run, job, machine, window)
-    elif job.vibration is not None:
+    elif job.vibration is not None and job.kind != "drill":  # a drill job judges each hole
         report["aircut"] = aircut_section(run)
     return report
 
@@ -142,6 +142,8 @@ def drill_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.n
         ct, cfb = ct[keep], cfb[keep]
     conv = analyze_drilling(ct, *xyz(conv_plan.joints, cfb), cycle.holes, cycle.r_z, cycle.xy_tolerance,
                             cycle.surface_z)
+    if job.vibration is not None:
+        hole_aircuts(run, result["holes"], cycle.surface_z)
     result["conventional_cycle_time_s"] = conv["cycle_time_s"]
     if frame:  # from the cycle's start, over the first hole; in the tilted frame's limits
         result["lower_bound_s"] = lower_bound_time(tilted_frame(job, machine, kin).machine, cycle)
@@ -196,22 +198,56 @@ def thread_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.
     return {**feedback, "commanded": {k: commanded[k] for k in ("max_chip_revs", "helix_residual_mm", "depth_error_mm")}}
 
 
-def aircut_section(run: Run) -> dict:
-    """Air-cuts of every vibrating feed, on the commands and on the feedback."""
+def _feeds(run: Run) -> list[tuple[dict, float]]:
+    """Every vibrated feed of the run: its start event and its end time (s)."""
     starts = [e for e in run.events if e.get("name") == "vibration_feed"]
     ends = [e["stamp_ns"] / 1e9 for e in run.events if e.get("name") == "vibration_end"]
+    return list(zip(starts, ends))
+
+
+def _feed_aircut(run: Run, times: np.ndarray, positions: np.ndarray, start: dict, end: float,
+                 below: float | None = None) -> dict | None:
+    """analyze_aircut of one vibrated feed (from where its progress first passes ``below``,
+    m along the feed, if given), or None if not even one revolution was recorded."""
+    inside = (times >= start["stamp_ns"] / 1e9) & (times <= end)
+    cols = [run.column(j) for j in start["joints"]]
+    progress = (positions[:, cols] - np.array(start["start"])) @ np.array(start["direction"])
+    if below is not None:
+        cut = inside & (progress > below)
+        inside &= np.arange(len(times)) >= (int(np.argmax(cut)) if cut.any() else len(times))
+    spindle = positions[inside, run.column(SPINDLE)]
+    if len(spindle) < 2 or abs(spindle[-1] - spindle[0]) < 2 * np.pi:
+        return None  # not even one revolution recorded: nothing to judge
+    return analyze_aircut(spindle, progress[inside]).to_dict()
+
+
+def hole_aircuts(run: Run, holes: list[dict], surface_z: float) -> None:
+    """Per hole, the air-cut share and the longest chip below the surface, on the commands
+    and on the feedback (the vibrated feed starts at R, in the air)."""
+    rows = {h["index"]: h for h in holes}
+    for start, end in _feeds(run):
+        row = rows.get(start.get("hole"))
+        if row is None:
+            continue
+        above = start["start"][0] - surface_z  # the feed runs down Z from R
+        row["aircut"] = {}
+        for source, times, positions in (("commanded", run.command_t, run.command),
+                                         ("feedback", run.feedback_t, run.feedback)):
+            found = _feed_aircut(run, times, positions, start, end, above)
+            row["aircut"][source] = None if found is None else {
+                k: found[k] for k in ("revolutions", "revolutions_with_aircut", "aircut_fraction", "max_chip_revs")}
+
+
+def aircut_section(run: Run) -> dict:
+    """Air-cuts of every vibrating feed, on the commands and on the feedback."""
     out = {}
     for source, times, positions in (("commanded", run.command_t, run.command),
                                      ("feedback", run.feedback_t, run.feedback)):
         totals = {"revolutions": 0, "revolutions_with_aircut": 0, "max_chip_revs": 0.0}
-        for start, end in zip(starts, ends):
-            inside = (times >= start["stamp_ns"] / 1e9) & (times <= end)
-            spindle = positions[inside, run.column(SPINDLE)]
-            if len(spindle) < 2 or abs(spindle[-1] - spindle[0]) < 2 * np.pi:
-                continue  # not even one revolution recorded: nothing to judge
-            cols = [run.column(j) for j in start["joints"]]
-            progress = (positions[inside][:, cols] - np.array(start["start"])) @ np.array(start["direction"])
-            report = analyze_aircut(spindle, progress).to_dict()
+        for start, end in _feeds(run):
+            report = _feed_aircut(run, times, positions, start, end)
+            if report is None:
+                continue
             totals["revolutions"] += report["revolutions"]
             totals["revolutions_with_aircut"] += report["revolutions_with_aircut"]
             totals["max_chip_revs"] = max(totals["max_chip_revs"], report["max_chip_revs"])

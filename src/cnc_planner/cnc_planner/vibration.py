@@ -96,6 +96,27 @@ class Vibration:
         return "vibration.D" if self.D is not None else "vibration.E"
 
 
+def equal_speed_q(E: float, R: float) -> float:
+    """Q of the method's E/R waveform: forward and backward at one speed, the turning point
+    A1 R revolutions before the return point B1, B1 E revolutions after the start.
+
+    Over a vibration the feed line advances E*F; forward (E - R revs) and back (R revs) at
+    one speed v: v*(E - R) - v*R = E*F, so v = E*F/(E - 2R) and A1 stands
+    v*(E - R) - (E - R)*F = Q*F ahead of the feed line. Needs R < E/2.
+
+    With straight strokes (the method's drawing) that waveform only touches the previous
+    revolution's path: for E 2, R 0.5 the forward stroke from B1 retraces it for half a
+    revolution with zero clearance, and breaks no chip. Our strokes are jerk-continuous (``waveform``: the
+    same A1, B1 and mean speeds, cosine-shaped in between), which run behind the straight
+    stroke just after B1: the air-cut needs Q > _min_q (1.155 for E 2, R 0.5), and the
+    equal-speed Q (1.5) clears it with margin, so no departure past B1 is needed (README,
+    "E/R without Q", gives the margin measured on feedback).
+    """
+    if not 0.0 < 2.0 * R < E:
+        raise VibrationError(f"vibration.R: equal forward and backward speed needs 0 < R < E/2 = {E / 2:g}")
+    return 2.0 * R * (E - R) / (E - 2.0 * R)
+
+
 def _require_positive(field: str, value: object) -> None:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise VibrationError(f"{field}: expected a finite number, got {value!r}")

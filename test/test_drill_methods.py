@@ -59,3 +59,28 @@ def test_e_r_vibration_without_q_and_a_dwell_on_feedback(tmp_path):
         held = (run.feedback_t >= start) & (run.feedback_t <= start + 0.25)
         assert held.sum() >= 240  # 1 ms feedback over the whole dwell
         assert np.all(np.abs(z[held] + 0.004) <= DEPTH_TOLERANCE_MM * 1e-3)
+
+
+def test_clamps_pecks_steps_and_hole_order_on_feedback(tmp_path):
+    """drill_clamps.yaml: the tip passes over both clamps no lower than top + 1 mm, every
+    peck's fast re-entry stays above the previous bottom, the hole on the lower step is
+    drilled to its own depth, and the short tour beats the given order."""
+    report = run_and_reanalyse("drill_clamps.yaml", tmp_path / "clamps")
+    drill = report["drill"]
+    assert report["state"] == "succeeded" and drill["safety_violations"] == 0
+    over = [o for o in drill["obstacles"] if o["min_clearance_mm"] is not None]
+    assert len(over) == 2  # the tour crosses both clamps
+    for o in over:
+        assert o["min_clearance_mm"] >= o["required_mm"]
+    pecks = drill["pecks"]
+    assert pecks["reentries"] == 6 * 2 - 1  # 3 pecks per 9 mm hole, 2 in the 6 mm one
+    assert pecks["min_reentry_height_mm"] > 0.0
+    depths = {h["job_index"]: h["depth_mm"] for h in drill["holes"]}
+    # 6 mm below its own surface (-2 mm), the others 9 mm; within the servo's overshoot at
+    # the bottom of a plain feed (about 12 um at 600 mm/min, the bottom compensation's to remove)
+    assert depths[4] == pytest.approx(6.0, abs=0.02)
+    assert all(depths[k] == pytest.approx(9.0, abs=0.02) for k in depths if k != 4)
+    order = drill["order"]
+    assert order["drilled"] == "shortest"
+    assert order["shortest_cycle_time_s"] < order["given_cycle_time_s"]
+    assert sorted(depths) == list(range(6))

@@ -85,6 +85,8 @@ def field_path_known(doc, reason: str) -> bool:
         step = rest[: len(rest) - len(after)]
         if isinstance(node, list):
             node, spec = node[int(step[1:-1])], spec.item if isinstance(spec, List) else None
+            if isinstance(node, dict):  # a list entry given as a mapping (a hole, an arc)
+                spec = getattr(spec, "mapping", spec)
         else:
             key = _key_of(node, step)
             node, spec = node[key], spec.fields.get(key) if isinstance(spec, Obj) else None
@@ -205,7 +207,7 @@ def mutants(draw):
         if op == "drop":
             del parent[last]
         elif op == "type":
-            parent[last] = draw(st.sampled_from(WRONG_TYPES))
+            parent[last] = copy.deepcopy(draw(st.sampled_from(WRONG_TYPES)))  # a shared [] or {} mutated later would nest in itself
         elif op == "number":
             parent[last] = draw(st.sampled_from(SPECIAL_NUMBERS))
         elif isinstance(parent[last], (int, float)) and not isinstance(parent[last], bool):

@@ -57,6 +57,7 @@ from cnc_servo_bridge.drive import DriveModel
 
 from .builder import PlanBuilder
 from .motion import Limits, RuckigMove, axis_limits, calculate, point_to_point
+from .peck import Peck, peck_moves
 from .timeline import Piece, Plan
 from .vibration import COMPENSATION_TAIL, Vibration, VibrationFeed, learn_correction, settled
 
@@ -100,6 +101,9 @@ class DrillCycle:
     vibration: Vibration | None = None
     spindle_speed: float = 0.0
     dwell: float = 0.0
+    hole_planes: tuple[tuple[float, float, float], ...] | None = None
+    peck: Peck | None = None
+    order: tuple[int, ...] | None = None  # the job's index of each hole, in drilling order
 
     def __post_init__(self) -> None:
         if not self.holes:
@@ -116,6 +120,16 @@ class DrillCycle:
             raise ValueError("spindle_speed: a vibrated feed needs a turning spindle")
         if self.dwell < 0:
             raise ValueError("dwell: must be >= 0")
+        if self.hole_planes is not None:
+            if len(self.hole_planes) != len(self.holes):
+                raise ValueError("hole_planes: one (surface, R, bottom) per hole")
+            if not all(self.bottom_z <= b < s <= r <= self.r_z for s, r, b in self.hole_planes):
+                raise ValueError("hole_planes: need bottom_z <= bottom < surface <= R <= r_z per hole")
+
+    def planes(self, i: int) -> tuple[float, float, float]:
+        """Hole i's surface, its R plane (where the feed starts) and its bottom. r_z is the
+        plane X/Y moves above: the highest R, or higher over clamps (clearance_z, obstacles)."""
+        return self.hole_planes[i] if self.hole_planes is not None else (self.surface_z, self.r_z, self.bottom_z)
 
 
 def _z_move(lim: Limits, p0: float, v0: float, a0: float, p1: float | None = None,
@@ -195,8 +209,9 @@ class _Job:
         self.n = len(cycle.holes)
         self.feed_stroke = _z_move(Limits(cycle.feed, self.z.acceleration, self.z.jerk),
                                    cycle.r_z, -cycle.feed, 0.0, cycle.bottom_z)
-        self.fast = self._fast_exit()
-        self._vibrated: dict[float, VibrationFeed] = {}
+        self._exits: dict[float, _Retract] = {}
+        self.fast = self.fast_exit(cycle.bottom_z)
+        self._vibrated: dict[tuple[float, float], VibrationFeed] = {}
         position = (start["x"], start["y"])
         self.xy: list[_XYMove] = []
         corrections: dict[tuple, np.ndarray] = {}
@@ -214,15 +229,18 @@ class _Job:
             self.xy.append(xy)
             position = hole
 
-    def _fast_exit(self) -> _Retract:
-        """Full acceleration out of the hole: mode 1 if rapid is reached below R, else 2."""
-        c, z = self.cycle, self.z
-        run = _z_move(z, c.bottom_z, 0.0, 0.0, None, z.velocity)
-        if _state(run, run.duration)[0] <= c.r_z:
-            move = _z_move(z, c.bottom_z, 0.0, 0.0, c.r_z, z.velocity)
-            return _Retract(1, move, move.duration, (c.r_z, z.velocity, 0.0))
-        t_r = _crossing(run, c.r_z)
-        return _Retract(2, run, t_r, _state(run, t_r))
+    def fast_exit(self, bottom: float) -> _Retract:
+        """Full acceleration out of a hole from ``bottom``: mode 1 if rapid is reached below R, else 2."""
+        if bottom not in self._exits:
+            c, z = self.cycle, self.z
+            run = _z_move(z, bottom, 0.0, 0.0, None, z.velocity)
+            if _state(run, run.duration)[0] <= c.r_z:
+                move = _z_move(z, bottom, 0.0, 0.0, c.r_z, z.velocity)
+                self._exits[bottom] = _Retract(1, move, move.duration, (c.r_z, z.velocity, 0.0))
+            else:
+                t_r = _crossing(run, c.r_z)
+                self._exits[bottom] = _Retract(2, run, t_r, _state(run, t_r))
+        return self._exits[bottom]
 
     def arc(self, state: tuple[float, float, float], accel: float | None = None,
             duration: float = 0.0) -> RuckigMove:
@@ -237,49 +255,81 @@ class _Job:
         return 0.0 if self.cycle.vibration is not None else -self.cycle.feed
 
     def vibrated_stroke(self, builder: PlanBuilder, t_down: float, hole: int) -> float:
-        """S2 below R with the chip-breaking vibration: Z from rest at R to rest at the
-        bottom, the waveform locked to the spindle angle and its command pre-compensated
-        with the drive model (VibrationFeed); returns its end time. Strokes are cached by
-        the spindle angle they start at, since the timing search replans the cycle."""
+        """S2 below R with the chip-breaking vibration: Z from rest at the hole's R to rest
+        at its bottom, the waveform locked to the spindle angle and its command
+        pre-compensated with the drive model (VibrationFeed); returns its end time. Strokes
+        are cached by length and start angle, since the timing search replans the cycle."""
         c = self.cycle
+        _, top, bottom = c.planes(hole)
         angle = builder.timelines[SPINDLE].position_at(t_down)
-        key = round(math.fmod(angle, 2 * math.pi), 9)
+        key = (round(top - bottom, 12), round(math.fmod(angle, 2 * math.pi), 9))
         if key not in self._vibrated:
             z = self.machine.axes["z"]
             self._vibrated[key] = VibrationFeed(
-                c.r_z - c.bottom_z, c.feed * 2 * math.pi / c.spindle_speed, c.vibration, c.spindle_speed, z,
+                top - bottom, c.feed * 2 * math.pi / c.spindle_speed, c.vibration, c.spindle_speed, z,
                 start_angle=angle, servo_period=c.servo_period,
                 drive_model_factory=lambda: DriveModel(self.machine, c.servo_period, ("z",)))
         move = self._vibrated[key]
-        r_z = c.r_z
 
         def sample(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             progress, v, a = move.sample(t)
-            return r_z - progress, -v, -a
+            return top - progress, -v, -a
 
-        builder.timelines["z"].add(Piece(t_down, move.duration, sample), c.bottom_z)
-        builder.event(t_down, "vibration_feed", start=[r_z], direction=[-1.0], joints=["z"],
-                      length=c.r_z - c.bottom_z, feed_per_rev=c.feed * 2 * math.pi / c.spindle_speed,
+        builder.timelines["z"].add(Piece(t_down, move.duration, sample), bottom)
+        builder.event(t_down, "vibration_feed", start=[top], direction=[-1.0], joints=["z"],
+                      length=top - bottom, feed_per_rev=c.feed * 2 * math.pi / c.spindle_speed,
                       field="drill", hole=hole)
         builder.event(t_down + move.duration, "vibration_end", hole=hole)
         return t_down + move.duration
 
-    def feed_to_depth(self, builder: PlanBuilder, t_down: float, hole: int, plain: Callable[[], float]) -> float:
-        """S2 below R (``plain`` without a vibration), then the dwell at the bottom (G82);
-        returns when Z leaves the bottom."""
+    def _pecks(self, builder: PlanBuilder, t: float, hole: int, v0: float) -> float:
+        """The peck sequence of a hole from its R (moving at v0) to rest at its bottom."""
         c = self.cycle
-        end = plain() if c.vibration is None else self.vibrated_stroke(builder, t_down, hole)
+        surface, top, bottom = c.planes(hole)
+
+        def z_move(p0: float, v0: float, a0: float, p1: float, v1: float, speed: float | None) -> RuckigMove:
+            lim = self.z if speed is None else Limits(speed, self.z.acceleration, self.z.jerk)
+            return _z_move(lim, p0, v0, a0, p1, v1)
+
+        for step in peck_moves(z_move, c.peck, c.feed, top, v0, surface, bottom):
+            if step.kind == "feed" and step.peck > 0:
+                builder.event(t, "peck", hole=hole, peck=step.peck, previous_bottom=step.bottom)
+            elif step.kind == "reentry":
+                builder.event(t, "reentry", hole=hole, peck=step.peck, previous_bottom=step.bottom)
+            t = _add_z(builder, t, step.move)
+        return t
+
+    def feed_to_depth(self, builder: PlanBuilder, t_down: float, hole: int, overlapped: bool) -> float:
+        """S2 below the X/Y plane: fast down to the hole's own R if it lies lower, the feed
+        (plain, vibrated or in pecks) to the bottom, then the dwell (G82); returns when Z
+        leaves the bottom. ``overlapped``: Z arrives at the plane moving (the air arc)."""
+        c = self.cycle
+        _, top, bottom = c.planes(hole)
+        v = self.entry_velocity if overlapped else 0.0
+        t = t_down
+        if top < c.r_z - 1e-12:
+            t = _add_z(builder, t, _z_move(self.z, c.r_z, v, 0.0, top, v))
+        if c.vibration is not None:
+            end = self.vibrated_stroke(builder, t, hole)
+        elif c.peck is not None:
+            end = self._pecks(builder, t, hole, v)
+        elif overlapped:
+            stroke = (self.feed_stroke if c.hole_planes is None else
+                      _z_move(Limits(c.feed, self.z.acceleration, self.z.jerk), top, -c.feed, 0.0, bottom))
+            end = _add_z(builder, t, stroke)
+        else:
+            end = builder.linear({"z": bottom}, c.feed, start=t)
         if c.dwell > 0:
             builder.timelines["z"].add_hold(end, c.dwell)
             builder.event(end, "dwell", hole=hole, seconds=c.dwell)
         return end + c.dwell
 
-    def _slow_exit(self, speed: float) -> _Retract | None:
+    def _slow_exit(self, speed: float, bottom: float) -> _Retract | None:
         """Mode 3: reach R at ``speed`` with zero acceleration, or None if that needs an overshoot."""
         c = self.cycle
-        move = _z_move(self.z, c.bottom_z, 0.0, 0.0, c.r_z, speed)
+        move = _z_move(self.z, bottom, 0.0, 0.0, c.r_z, speed)
         extrema = move.trajectory.position_extrema[0]
-        if extrema.min < c.bottom_z - 1e-9 or extrema.max > c.r_z + 1e-9:
+        if extrema.min < bottom - 1e-9 or extrema.max > c.r_z + 1e-9:
             return None
         return _Retract(3, move, move.duration, (c.r_z, speed, 0.0))
 
@@ -287,30 +337,32 @@ class _Job:
         """Time from the bottom to R at feed over the next hole: retract plus air arc."""
         return retract.t_r + max(self.arc(retract.state).duration, air_needed)
 
-    def _best_slow_exit(self, air_needed: float) -> _Retract:
-        top = self.fast.state[1]
+    def _best_slow_exit(self, air_needed: float, bottom: float) -> _Retract:
+        top = self.fast_exit(bottom).state[1]
         speeds = np.linspace(0.0, top, MODE3_GRID + 1)[:-1]
         for _ in range(2):
-            found = [r for r in map(self._slow_exit, speeds) if r is not None]
+            found = [r for r in (self._slow_exit(v, bottom) for v in speeds) if r is not None]
             costs = [self.cost(r, air_needed) for r in found]
             best = found[int(np.argmin(costs))]
             step = speeds[1] - speeds[0]
             speeds = np.linspace(max(best.state[1] - step, 0.0), min(best.state[1] + step, top), MODE3_GRID)
         return best
 
-    def retract(self, air_needed: float) -> _Retract:
+    def retract(self, air_needed: float, hole: int) -> _Retract:
         """The retract law for a hole followed by an air arc of at least ``air_needed``."""
         forced = self.cycle.mode
+        bottom = self.cycle.planes(hole)[2]
+        fast = self.fast_exit(bottom)
         if forced in (1, 2):
-            if self.fast.mode != forced:
+            if fast.mode != forced:
                 reason = ("too shallow to reach rapid below R" if forced == 1
                           else "deep enough to reach rapid below R (mode 1)")
                 raise ValueError(f"mode: {forced} is impossible here, the hole is {reason}")
-            return self.fast
-        slow = self._best_slow_exit(air_needed)
-        if forced == 3 or self.cost(slow, air_needed) < self.cost(self.fast, air_needed) - 1e-6:
+            return fast
+        slow = self._best_slow_exit(air_needed, bottom)
+        if forced == 3 or self.cost(slow, air_needed) < self.cost(fast, air_needed) - 1e-6:
             return slow
-        return self.fast
+        return fast
 
     def last_retract(self) -> tuple[int, RuckigMove, float, RuckigMove | None]:
         """S3 of the last hole to rest above R: (mode, move, time at R, stop move or None).
@@ -320,10 +372,10 @@ class _Job:
         """
         c = self.cycle
         if c.mode in (1, 2):
-            fast = self.retract(0.0)
+            fast = self.retract(0.0, self.n - 1)
             stop = _z_move(self.z, *fast.state, None, 0.0)
             return fast.mode, fast.move, fast.t_r, stop
-        move = _z_move(self.z, c.bottom_z, 0.0, 0.0, c.r_z + RETURN_CLEARANCE)
+        move = _z_move(self.z, c.planes(self.n - 1)[2], 0.0, 0.0, c.r_z + RETURN_CLEARANCE)
         return 3, move, _crossing(move, c.r_z), None
 
 
@@ -499,7 +551,7 @@ def _emit_overlapped(job: _Job, retracts: list[_Retract]) -> Emit:
             apex = air.trajectory.position_extrema[0]
             builder.event(t_air + apex.t_max, "S2", hole=i, mode=mode)
             builder.event(t_down, "R_down", hole=i, mode=mode)
-            t_s3 = job.feed_to_depth(builder, t_down, i, lambda: _add_z(builder, t_down, job.feed_stroke))
+            t_s3 = job.feed_to_depth(builder, t_down, i, overlapped=True)
             builder.event(t_s3, "S3", hole=i, mode=mode)
             if last:
                 u = t_s3 + last_t_r
@@ -541,8 +593,7 @@ def _emit_conventional(job: _Job) -> Emit:
             t_down = builder.rapid({"z": c.r_z}, start=t_s2)
             builder.event(t_s2, "S2", hole=i, mode=None)
             builder.event(t_down, "R_down", hole=i, mode=None)
-            t_s3 = job.feed_to_depth(builder, t_down, i, lambda: builder.linear({"z": c.bottom_z}, c.feed,
-                                                                                 start=t_down))
+            t_s3 = job.feed_to_depth(builder, t_down, i, overlapped=False)
             builder.event(t_s3, "S3", hole=i, mode=None)
             up = builder.rapid_move({"z": clearance})
             t_up = t_s3 + _crossing(up, c.r_z)
@@ -686,10 +737,11 @@ def plan_drilling(builder: PlanBuilder, cycle: DrillCycle) -> list[dict]:
     floor_up = np.array([0.0] + [-math.floor(xy.leave / period + 1e-9) * period
                                  if xy.move and math.isfinite(xy.leave) else 0.0 for xy in job.xy[1:]])
     xy_time = np.array([xy.duration for xy in job.xy])
+    c_last_bottom = cycle.planes(job.n - 1)[2]
 
     def retracts(e_down: np.ndarray, e_up: np.ndarray) -> list[_Retract]:
         air_needed = e_up + xy_time + e_down
-        return [job.retract(air_needed[i + 1]) for i in range(job.n - 1)] + [job.fast]
+        return [job.retract(air_needed[i + 1], i) for i in range(job.n - 1)] + [job.fast_exit(c_last_bottom)]
 
     # One round at the command floors measures the lag margins; with them the retract
     # laws are chosen once more, then the gaps settle.

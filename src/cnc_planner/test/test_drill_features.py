@@ -142,3 +142,62 @@ def test_straight_stroke_e_r_waveform_only_touches_and_ours_cuts_air():
     cut = analyze_aircut(theta, smooth, tolerance=clearance)
     assert cut.revolutions_with_aircut == cut.revolutions and cut.max_chip_revs < 1.4
     assert Vibration(D=None, Q=q, E=2.0, R=0.5).vibrations_per_rev == 0.5
+
+
+def test_shortest_order_is_a_good_tour():
+    """Nearest neighbour + 2-opt against every order of 7 random holes: within 5 % of the best."""
+    import itertools
+
+    from cnc_planner.hole_order import shortest_order, tour_length
+
+    rng = np.random.default_rng(7)
+    for _ in range(4):
+        holes = [tuple(p) for p in rng.uniform(0.0, 0.1, (7, 2))]
+        order = shortest_order(holes, (0.0, 0.0))
+        assert sorted(order) == list(range(7))
+        best = min(tour_length(holes, list(p), (0.0, 0.0)) for p in itertools.permutations(range(7)))
+        assert tour_length(holes, order, (0.0, 0.0)) <= 1.05 * best
+
+
+def test_segment_over_a_clamp_hand_checked():
+    from cnc_planner.clamps import crossed, under_tool
+
+    clamp = [[0.010, -0.010, 0.020, 0.010, 0.012]]  # 10 mm wide bar across y = 0
+    assert crossed(clamp, [(0.0, 0.0), (0.030, 0.0)], 0.0) == [0]  # straight over it
+    assert crossed(clamp, [(0.0, 0.020), (0.030, 0.020)], 0.0) == []  # 10 mm beside it
+    assert crossed(clamp, [(0.0, 0.0125), (0.030, 0.0125)], 0.002) == [0]  # 2.5 mm off: radius + 1 mm margin
+    assert under_tool(clamp, [(0.0, 0.0), (0.0085, 0.0)], 0.002) == (0, 1)  # a hole 1.5 mm from its edge
+    assert under_tool(clamp, [(0.0, 0.0)], 0.002) is None
+
+
+def test_peck_levels_and_reentry_above_the_previous_bottom():
+    from cnc_planner.peck import REENTRY_GAP, levels
+
+    assert levels(0.0, -0.009, 0.003) == pytest.approx([-0.003, -0.006, -0.009])
+    assert levels(0.0, -0.010, 0.003) == pytest.approx([-0.003, -0.006, -0.009, -0.010])
+    _, plan, t, commands, feedback = simulate(job_with(depth=7.0, peck={"depth": 3.0}, feed=300, spindle_rpm=3000))
+    z = commands[:, plan.joints.index("z")]
+    entries = [e for e in plan.events if e.name == "reentry"]
+    feeds = [e for e in plan.events if e.name == "peck"]
+    assert len(entries) == len(feeds) == 2 * 2  # 2 holes, pecks at 3, 6 and 7 mm
+    for entry, feed in zip(entries, feeds):
+        fast = (t >= entry.time) & (t <= feed.time)
+        assert np.min(z[fast]) >= entry.data["previous_bottom"] + REENTRY_GAP - 1e-9
+        assert np.min(feedback[fast, plan.joints.index("z")]) > entry.data["previous_bottom"]
+    # G83: every retract goes up to R (the hole's R plane, 1 mm above the surface)
+    tops = [np.max(z[(t >= a.time - 0.3) & (t <= a.time)]) for a in entries]
+    assert tops == pytest.approx([0.001] * 4, abs=1e-6)
+
+
+@pytest.mark.parametrize("drill, field, words", [
+    ({"clearance_z": 0.5}, "drill.clearance_z", ["below the highest R plane"]),
+    ({"obstacles": [[9.2, -5, 20, 5, 10]]}, "drill.obstacles[0]", ["under the tool"]),
+    ({"obstacles": [[-1, -1, 1, 1, 10]]}, "drill.obstacles[0]", ["covers drill.holes[0]"]),
+    ({"peck": {"depth": 1, "full_every": 2}}, "drill.peck.full_every", ["retract: break"]),
+])
+def test_clamp_and_peck_mistakes_are_refused(drill, field, words):
+    with pytest.raises(JobError) as info:
+        plan_job(parse_job(job_with(**drill)), MACHINE, START)
+    assert info.value.field == field, str(info.value)
+    for word in words:
+        assert word in info.value.reason

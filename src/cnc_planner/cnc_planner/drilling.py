@@ -40,6 +40,12 @@ command itself arrives at the hole some tens of ms after the feedback does, so o
 feedback, not the command, is safe at R then. compensate_xy=False plans the plain ruckig
 commands (then both are safe), for comparison.
 
+Below the X/Y plane (feed_to_depth): each hole may have its own surface, R and bottom
+(hole_planes; r_z is then the plane X/Y moves above, the highest R or higher over clamps,
+and Z falls fast from it to the hole's R); the feed to the bottom is plain, vibrated
+(chip breaking locked to the spindle angle, VibrationFeed: Z reaches R at rest) or in
+pecks (peck.py); a dwell (G82) may follow. X/Y stands still over the hole throughout.
+
 Conventional cycle (overlap=False), like G81 with G99: X/Y rapid, Z rapid to R, feed to
 depth, rapid up to R + RETURN_CLEARANCE, each move after the previous one ends.
 """
@@ -768,5 +774,10 @@ def lower_bound_time(machine: Machine, cycle: DrillCycle,
     is shorter."""
     first = start_xy if start_xy is not None else cycle.holes[0]
     job = _Job(machine, replace(cycle, compensate_xy=False), {"x": first[0], "y": first[1], "z": cycle.r_z})
-    below = job.feed_stroke.duration + job.fast.t_r
-    return sum(xy.duration for xy in job.xy) + job.n * below
+    if cycle.hole_planes is None:
+        below = job.n * (job.feed_stroke.duration + job.fast.t_r)
+    else:  # each hole from its own R (the fall from the X/Y plane to it left out) to its bottom
+        feed = Limits(cycle.feed, job.z.acceleration, job.z.jerk)
+        below = sum(_z_move(feed, top, -cycle.feed, 0.0, bottom).duration + job.fast_exit(bottom).t_r
+                    for _, top, bottom in map(cycle.planes, range(job.n)))
+    return sum(xy.duration for xy in job.xy) + below

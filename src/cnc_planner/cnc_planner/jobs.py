@@ -35,7 +35,7 @@ from .path_job import plan_path
 from .timeline import Event, Piece, Plan
 from .thread_cutting import ThreadError, ThreadSpec, check_thread, plan_thread
 from .turning import TurningError, check_outlines, plan_roughing
-from .vibration import Vibration, VibrationError, VibrationFeed, check_vibration, equal_speed_q
+from .vibration import Vibration, VibrationError, VibrationFeed, check_vibration, er_vibration
 
 TWO_PI = 6.283185307179586
 VIBRATION_SERVO_PERIOD = 1e-3  # the bridge's servo period the compensation is computed for
@@ -82,13 +82,12 @@ def _program_axes(machine: Machine, target: SimpleNamespace, field: str) -> list
 
 
 def vibration_of(job: SimpleNamespace) -> Vibration | None:
-    """The job's vibration; E and R without Q take the method's equal-speed waveform
-    (vibration.equal_speed_q)."""
+    """The job's vibration; E and R without Q take the method's straight-stroke waveform
+    (vibration.er_vibration)."""
     v = job.vibration
     if v is None:
         return None
-    q = v.Q if v.Q is not None else equal_speed_q(v.E, v.R)
-    return Vibration(D=v.D, Q=q, E=v.E, R=v.R)
+    return Vibration(D=v.D, Q=v.Q, E=v.E, R=v.R) if v.Q is not None else er_vibration(v.E, v.R)
 
 
 def _vibration_error(err: VibrationError) -> JobError:

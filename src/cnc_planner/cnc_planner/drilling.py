@@ -743,11 +743,11 @@ def plan_drilling(builder: PlanBuilder, cycle: DrillCycle) -> list[dict]:
     floor_up = np.array([0.0] + [-math.floor(xy.leave / period + 1e-9) * period
                                  if xy.move and math.isfinite(xy.leave) else 0.0 for xy in job.xy[1:]])
     xy_time = np.array([xy.duration for xy in job.xy])
-    c_last_bottom = cycle.planes(job.n - 1)[2]
+    last_bottom = cycle.planes(job.n - 1)[2]
 
     def retracts(e_down: np.ndarray, e_up: np.ndarray) -> list[_Retract]:
         air_needed = e_up + xy_time + e_down
-        return [job.retract(air_needed[i + 1], i) for i in range(job.n - 1)] + [job.fast_exit(c_last_bottom)]
+        return [job.retract(air_needed[i + 1], i) for i in range(job.n - 1)] + [job.fast_exit(last_bottom)]
 
     # One round at the command floors measures the lag margins; with them the retract
     # laws are chosen once more, then the gaps settle.

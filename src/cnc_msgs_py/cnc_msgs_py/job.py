@@ -30,6 +30,7 @@ shoulder faces, in both directions.
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
@@ -58,32 +59,51 @@ POINT_ZX = List(Num("mm"), length=2)  # [z, radius] on the lathe
 ARC_ZX = Obj({"arc_to": POINT_ZX, "radius": Num("mm", default=None), "center": List(Num("mm"), length=2, default=None)})
 
 
-class OutlineEntry:
-    """A ``[z, radius]`` point, or an arc ``{arc_to, radius and/or center}`` from the previous point."""
+@dataclass(frozen=True)
+class PointOr:
+    """A point given as a list, or a mapping form of it (an arc, a hole with its own depth)."""
 
-    default = None
+    point: List
+    mapping: Obj
+    expected: str
+    default: Any = None
 
     def check(self, value: Any, path: str) -> Any:
         if isinstance(value, dict):
-            return ARC_ZX.check(value, path)
+            return self.mapping.check(value, path)
         if isinstance(value, list):
-            return POINT_ZX.check(value, path)
-        raise JobError(path, f"expected a [z, radius] point or an {{arc_to: ...}} arc, got {show(value)}")
+            return self.point.check(value, path)
+        raise JobError(path, f"expected {self.expected}, got {show(value)}")
 
 
-OUTLINE = List(OutlineEntry(), min_len=2, max_len=MAX_LIST)
+# A ``[z, radius]`` point, or an arc ``{arc_to, radius and/or center}`` from the previous point.
+OUTLINE = List(PointOr(POINT_ZX, ARC_ZX, "a [z, radius] point or an {arc_to: ...} arc"), min_len=2, max_len=MAX_LIST)
 
 VIBRATION = Obj({
     "D": Num("1", gt=0.0, max=50.0, default=None),
-    "Q": Num("1", gt=0.0, max=20.0),
+    "Q": Num("1", gt=0.0, max=20.0, default=None),  # required with D; optional with E and R
     "E": Num("1", gt=0.0, max=50.0, default=None),
     "R": Num("1", gt=0.0, max=50.0, default=None),
     "phase_shift": Num("deg", min=-360.0, max=360.0, default=0.0),
     "D_step": Num("1", min=0.0, max=10.0, default=0.0),
 }, default=None)
 
+HOLE_AT = Obj({"at": List(Num("mm"), length=2), "depth": Num("mm", gt=0.0, default=None),
+               "surface_z": Num("mm", default=None)})
+
+
+# A hole: ``[x, y]``, or ``{at: [x, y], depth, surface_z}`` overriding the block's values.
+HOLE = PointOr(List(Num("mm"), length=2), HOLE_AT, "an [x, y] point or an {at: [x, y], ...} hole")
+
+PECK = Obj({
+    "depth": Num("mm", gt=0.0),  # Q: feed this much deeper per peck
+    "retract": Str(("full", "break"), default="full"),  # G83 to R, or G73 chip-break
+    "full_every": Num("1", min=1, max=1000, integer=True, default=None),  # with break: every N-th to R
+}, default=None)
+OBSTACLE = List(Num("mm"), length=5)  # [x0, y0, x1, y1, top_z]: a clamp's box, program coordinates
+
 DRILL = Obj({
-    "holes": List(List(Num("mm"), length=2), min_len=1, max_len=MAX_LIST),
+    "holes": List(HOLE, min_len=1, max_len=MAX_LIST),
     "surface_z": Num("mm", default=0.0),
     "depth": Num("mm", gt=0.0),
     "r_gap": Num("mm", gt=0.0, max=50.0, default=2.0),
@@ -91,6 +111,11 @@ DRILL = Obj({
     "overlap": Str(("auto", "off"), default="auto"),
     "mode": Either((Str(("auto",)), Num("1", min=1, max=3, integer=True)), "auto, 1, 2 or 3", default="auto"),
     "gentle_air_accel": Bool(default=False),
+    "dwell": Num("1", min=0.0, max=60.0, default=0.0),  # s at the bottom of every hole (G82)
+    "peck": PECK,
+    "clearance_z": Num("mm", default=None),  # X/Y travels no lower than this (G98-like)
+    "obstacles": List(OBSTACLE, max_len=1000, default=None),
+    "order": Str(("given", "shortest"), default="given"),
 }, default=None)
 
 MOVE_TARGET = Obj({k: Num("mm", default=None) for k in AXIS_KEYS})
@@ -141,7 +166,7 @@ JOB = Obj({
     "machine": Str(pattern=r"[A-Za-z0-9_.-]{1,64}"),
     "tool": Obj({
         "length": Num("mm", min=0.0, max=1000.0, default=0.0),
-        "diameter": Num("mm", gt=0.0, max=500.0, default=None),
+        "diameter": Num("mm", min=0.0, max=500.0, default=None),  # 0: a lathe tool (D0)
         "nose_radius": Num("mm", min=0.0, max=10.0, default=0.0),
     }, default={}),
     "setup": Obj({
@@ -162,6 +187,24 @@ JOB = Obj({
 
 # Fields each kind needs besides its own block.
 NEEDS_SPINDLE = ("drill", "turn", "thread")
+LATHE_KINDS = ("turn", "thread")  # their tools may have diameter 0 (D0 in lathe tool tables)
+# Keys a kind has no use for: given anyway, they are refused by name, never ignored.
+# (The blocks of the other kinds are refused in _check_kind; path refuses a vibration.)
+UNUSED_KEYS = {
+    "drill": ("tool.nose_radius", "vibration.phase_shift", "vibration.D_step"),
+    "move": ("vibration.phase_shift", "vibration.D_step"),
+    "turn": ("vibration.phase_shift", "vibration.D_step"),
+    "thread": (),
+    "path": ("vibration.phase_shift", "vibration.D_step"),
+}
+UNUSED_WHY = {
+    "tool.nose_radius": "a drill has no nose radius (it is a lathe insert's)",
+    "vibration.phase_shift": "only a thread shifts the vibration phase from pass to pass",
+    "vibration.D_step": "only a thread raises D from pass to pass",
+}
+# Drill keys that only the overlapped cycle uses.
+OVERLAP_ONLY = {"mode": "the conventional cycle (overlap: off) has no retract modes",
+                "gentle_air_accel": "the conventional cycle (overlap: off) has no air arc"}
 
 
 def _mm(value_m: float) -> str:
@@ -214,6 +257,35 @@ def expand_outline(entries: list, path: str) -> list[list[float]]:
     return points
 
 
+def _check_drill(d: SimpleNamespace, vibration: SimpleNamespace | None) -> None:
+    """Per-hole values spelled out: ``holes`` becomes [x, y] points and ``hole_planes`` the
+    (surface_z, depth) of each hole; pecks, clearance and obstacles checked against them."""
+    points, planes = [], []
+    for i, hole in enumerate(d.holes):
+        if isinstance(hole, list):
+            points.append(hole)
+            planes.append((d.surface_z, d.depth))
+        else:
+            points.append(hole.at)
+            planes.append((d.surface_z if hole.surface_z is None else hole.surface_z,
+                           d.depth if hole.depth is None else hole.depth))
+    d.holes, d.hole_planes = points, planes
+    top = max(surface for surface, _ in planes) + d.r_gap
+    if d.clearance_z is not None and d.clearance_z < top - 1e-12:
+        raise JobError("drill.clearance_z", f"{_mm(d.clearance_z)} lies below the highest R plane ({_mm(top)})")
+    for k, (x0, y0, x1, y1, _) in enumerate(d.obstacles or []):
+        if not (x0 < x1 and y0 < y1):
+            raise JobError(f"drill.obstacles[{k}]", "needs x0 < x1 and y0 < y1")
+        for i, (x, y) in enumerate(points):
+            if x0 <= x <= x1 and y0 <= y <= y1:
+                raise JobError(f"drill.obstacles[{k}]", f"covers drill.holes[{i}]")
+    if d.peck is not None:
+        if vibration is not None:
+            raise JobError("drill.peck", "the vibration breaks the chip without pecking: give one of them")
+        if d.peck.full_every is not None and d.peck.retract != "break":
+            raise JobError("drill.peck.full_every", "only chip-break pecks (retract: break) retract fully every N")
+
+
 def _check_kind(job: SimpleNamespace) -> None:
     """Cross-field rules that a field-by-field check cannot see."""
     kind = job.kind
@@ -245,8 +317,15 @@ def _check_kind(job: SimpleNamespace) -> None:
             raise JobError("vibration", "give either D or E and R, not both")
         if vib.E is not None and vib.R is not None and vib.R >= vib.E:
             raise JobError("vibration.R", "revolutions in retreat must be fewer than E")
+        if vib.D is not None and vib.Q is None:
+            raise JobError("vibration.Q", "required with D (amplitude = Q * feed per rev)")
+        if vib.Q is None and not 2.0 * vib.R < vib.E:
+            raise JobError("vibration.R", f"without Q the forward stroke and the retreat run at equal speed, "
+                                          f"which needs R < E/2 = {vib.E / 2:g}; give Q as well")
         if kind == "move" and job.spindle_rpm <= 0.0:
             raise JobError("spindle_rpm", "must be > 0 when a vibration is given")
+    if kind == "drill":
+        _check_drill(job.drill, job.vibration)
     if kind == "turn":
         job.turn.stock = expand_outline(job.turn.stock, "turn.stock")
         job.turn.profile = expand_outline(job.turn.profile, "turn.profile")
@@ -265,6 +344,29 @@ def _check_kind(job: SimpleNamespace) -> None:
         raise JobError("path.tool_axis", "needs one vector per point")
 
 
+def _given(doc: dict, dotted: str) -> bool:
+    """Whether the raw document gives a value (not null) at a dotted key path."""
+    node: Any = doc
+    for key in dotted.split("."):
+        if not isinstance(node, dict) or node.get(key) is None:
+            return False
+        node = node[key]
+    return True
+
+
+def _check_unused(doc: dict, job: SimpleNamespace) -> None:
+    """A key the job's kind does not use is an error naming it: nothing given is ignored."""
+    for key in UNUSED_KEYS[job.kind]:
+        if _given(doc, key):
+            raise JobError(key, f"not used by a {job.kind} job: {UNUSED_WHY[key]}")
+    if job.tool.diameter == 0.0 and job.kind not in LATHE_KINDS:
+        raise JobError("tool.diameter", f"must be > 0 mm for a {job.kind} job (0, D0, is a lathe tool's)")
+    if job.kind == "drill" and job.drill.overlap == "off":
+        for key, why in OVERLAP_ONLY.items():
+            if _given(doc, f"drill.{key}"):
+                raise JobError(f"drill.{key}", f"not used: {why}")
+
+
 def parse_job(doc: Any) -> SimpleNamespace:
     """Validate a whole job document and return it in SI units.
 
@@ -276,6 +378,7 @@ def parse_job(doc: Any) -> SimpleNamespace:
     """
     job = JOB.check(doc, "")
     _check_kind(job)
+    _check_unused(doc, job)
     return job
 
 

@@ -513,6 +513,72 @@ def test_vibration_on_a_move_needs_the_spindle():
     rejected(d, "spindle_rpm", "vibration")
 
 
+def test_vibration_d_needs_q():
+    d = doc("turn")
+    d["vibration"] = {"D": 1.5}
+    rejected(d, "vibration.Q", "required with D")
+
+
+def test_vibration_e_r_without_q_parses_and_needs_r_below_half_e():
+    d = doc("drill")
+    d["vibration"] = {"E": 2, "R": 0.5}
+    assert parse_job(d).vibration.Q is None
+    d["vibration"] = {"E": 2, "R": 1}
+    rejected(d, "vibration.R", "equal speed", "R < E/2 = 1", "give Q")
+    d["vibration"] = {"E": 2, "R": 1, "Q": 1.2}  # with Q the retreat may take half the vibration
+    assert parse_job(d).vibration.Q == 1.2
+
+
+@pytest.mark.parametrize("kind, key, value", [
+    ("drill", "vibration.phase_shift", 180), ("drill", "vibration.D_step", 0.5),
+    ("move", "vibration.phase_shift", 90), ("turn", "vibration.D_step", 0.1),
+    ("drill", "tool.nose_radius", 0.4),
+])
+def test_a_key_the_kind_does_not_use_is_refused_by_name(kind, key, value):
+    d = doc(kind)
+    if kind == "move":
+        d["spindle_rpm"] = 1000
+    if key.startswith("vibration"):
+        d["vibration"] = {"D": 1.5, "Q": 1.2}
+    block, name = key.split(".")
+    d.setdefault(block, {})[name] = value
+    rejected(d, key, f"not used by a {kind} job")
+
+
+@pytest.mark.parametrize("key, value", [("mode", 2), ("gentle_air_accel", True)])
+def test_overlap_only_keys_are_refused_on_the_conventional_cycle(key, value):
+    d = doc("drill")
+    d["drill"]["mode"] = None
+    d["drill"]["gentle_air_accel"] = None
+    d["drill"]["overlap"] = "off"
+    assert parse_job(d).drill.overlap == "off"
+    d["drill"][key] = value
+    rejected(d, f"drill.{key}", "not used", "overlap: off")
+
+
+def test_thread_keeps_its_vibration_keys():
+    d = doc("thread")
+    d["vibration"] = {"D": 1.5, "Q": 1.2, "phase_shift": 180, "D_step": 0.5}
+    assert parse_job(d).vibration.D_step == 0.5
+
+
+def test_a_lathe_tool_of_diameter_zero_is_accepted():
+    d = doc("turn")
+    d["tool"] = {"diameter": 0, "nose_radius": 0.4}
+    assert parse_job(d).tool.diameter == 0.0
+    d["tool"]["diameter"] = -1
+    rejected(d, "tool.diameter", ">= 0")
+
+
+def test_drill_dwell_in_seconds():
+    d = doc("drill")
+    assert parse_job(d).drill.dwell == 0.0
+    d["drill"]["dwell"] = 0.5
+    assert parse_job(d).drill.dwell == 0.5
+    d["drill"]["dwell"] = -0.1
+    rejected(d, "drill.dwell", ">= 0")
+
+
 @pytest.mark.parametrize("end_z", [4.0, 10.0])
 def test_thread_end_z_not_left_of_start_z(end_z):
     d = doc("thread")

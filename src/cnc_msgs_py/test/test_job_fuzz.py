@@ -21,7 +21,7 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis.control import currently_in_test_context
 from hypothesis import strategies as st
 
-from cnc_msgs_py.job import ARC_ZX, AXIS_KEYS, JOB, OutlineEntry, parse_job
+from cnc_msgs_py.job import AXIS_KEYS, JOB, parse_job
 from cnc_msgs_py.schema import JobError, List, Obj, _key
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -81,12 +81,12 @@ def field_path_known(doc, reason: str) -> bool:
         if not found:
             # the missing last step: a key of the schema under an existing parent, then ': '
             m = re.match(r"([A-Za-z_][A-Za-z0-9_]*): ", rest)
-            if isinstance(spec, OutlineEntry) and isinstance(node, dict):
-                spec = ARC_ZX  # an outline entry given as a mapping is an arc
             return bool(m) and isinstance(node, dict) and isinstance(spec, Obj) and m.group(1) in spec.fields
         step = rest[: len(rest) - len(after)]
         if isinstance(node, list):
             node, spec = node[int(step[1:-1])], spec.item if isinstance(spec, List) else None
+            if isinstance(node, dict):  # a list entry given as a mapping (a hole, an arc)
+                spec = getattr(spec, "mapping", spec)
         else:
             key = _key_of(node, step)
             node, spec = node[key], spec.fields.get(key) if isinstance(spec, Obj) else None
@@ -207,7 +207,7 @@ def mutants(draw):
         if op == "drop":
             del parent[last]
         elif op == "type":
-            parent[last] = draw(st.sampled_from(WRONG_TYPES))
+            parent[last] = copy.deepcopy(draw(st.sampled_from(WRONG_TYPES)))  # a shared [] or {} mutated later would nest in itself
         elif op == "number":
             parent[last] = draw(st.sampled_from(SPECIAL_NUMBERS))
         elif isinstance(parent[last], (int, float)) and not isinstance(parent[last], bool):

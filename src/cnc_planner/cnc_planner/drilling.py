@@ -40,6 +40,12 @@ command itself arrives at the hole some tens of ms after the feedback does, so o
 feedback, not the command, is safe at R then. compensate_xy=False plans the plain ruckig
 commands (then both are safe), for comparison.
 
+Below the X/Y plane (feed_to_depth): each hole may have its own surface, R and bottom
+(hole_planes; r_z is then the plane X/Y moves above, the highest R or higher over clamps,
+and Z falls fast from it to the hole's R); the feed to the bottom is plain, vibrated
+(chip breaking locked to the spindle angle, VibrationFeed: Z reaches R at rest) or in
+pecks (peck.py); a dwell (G82) may follow. X/Y stands still over the hole throughout.
+
 Conventional cycle (overlap=False), like G81 with G99: X/Y rapid, Z rapid to R, feed to
 depth, rapid up to R + RETURN_CLEARANCE, each move after the previous one ends.
 """
@@ -52,13 +58,14 @@ from typing import Callable
 import numpy as np
 from ruckig import ControlInterface, InputParameter
 
-from cnc_msgs_py.machine import Machine
+from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_servo_bridge.drive import DriveModel
 
 from .builder import PlanBuilder
 from .motion import Limits, RuckigMove, axis_limits, calculate, point_to_point
+from .peck import Peck, peck_moves
 from .timeline import Piece, Plan
-from .vibration import COMPENSATION_TAIL, learn_correction, settled
+from .vibration import COMPENSATION_TAIL, Vibration, VibrationFeed, learn_correction, settled
 
 # Conventional cycle: X/Y travel at R + 1 mm (G99 returns to R; the 1 mm keeps the tip
 # above R on feedback too, where Z reads up to ~0.3 mm below its command while braking).
@@ -103,6 +110,12 @@ class DrillCycle:
     xy_tolerance: float = 1e-5
     servo_period: float = 1e-3
     compensate_xy: bool = True
+    vibration: Vibration | None = None
+    spindle_speed: float = 0.0
+    dwell: float = 0.0
+    hole_planes: tuple[tuple[float, float, float], ...] | None = None
+    peck: Peck | None = None
+    order: tuple[int, ...] | None = None  # the job's index of each hole, in drilling order
 
     def __post_init__(self) -> None:
         if not self.holes:
@@ -115,6 +128,20 @@ class DrillCycle:
             raise ValueError(f"mode: expected None, 1, 2 or 3, got {self.mode!r}")
         if self.xy_tolerance <= 0 or self.servo_period <= 0:
             raise ValueError("xy_tolerance and servo_period must be > 0")
+        if self.vibration is not None and not self.spindle_speed > 0:
+            raise ValueError("spindle_speed: a vibrated feed needs a turning spindle")
+        if self.dwell < 0:
+            raise ValueError("dwell: must be >= 0")
+        if self.hole_planes is not None:
+            if len(self.hole_planes) != len(self.holes):
+                raise ValueError("hole_planes: one (surface, R, bottom) per hole")
+            if not all(self.bottom_z <= b < s <= r <= self.r_z for s, r, b in self.hole_planes):
+                raise ValueError("hole_planes: need bottom_z <= bottom < surface <= R <= r_z per hole")
+
+    def planes(self, i: int) -> tuple[float, float, float]:
+        """Hole i's surface, its R plane (where the feed starts) and its bottom. r_z is the
+        plane X/Y moves above: the highest R, or higher over clamps (clearance_z, obstacles)."""
+        return self.hole_planes[i] if self.hole_planes is not None else (self.surface_z, self.r_z, self.bottom_z)
 
 
 def _z_move(lim: Limits, p0: float, v0: float, a0: float, p1: float | None = None,
@@ -198,11 +225,13 @@ class _Job:
         if start["z"] < cycle.r_z:
             raise ValueError("the tool must start above the R plane")
         self.n = len(cycle.holes)
-        self.bottom = cycle.bottom_z  # where the Z command turns: see _compensate_bottom
-        self.feed_stroke = _z_move(self.feed_limits, cycle.r_z, -cycle.feed, 0.0, self.bottom)
-        self.fast = self._fast_exit()
-        if cycle.compensate_xy:
-            self._compensate_bottom()
+        self.feed_stroke = _z_move(Limits(cycle.feed, self.z.acceleration, self.z.jerk),
+                                   cycle.r_z, -cycle.feed, 0.0, cycle.bottom_z)
+        self._exits: dict[float, _Retract] = {}
+        self._turns: dict[tuple[float, float], float] = {}
+        self._strokes: dict[tuple[float, float], RuckigMove] = {}
+        self.fast = self.fast_exit(cycle.bottom_z)
+        self._vibrated: dict[tuple[float, float], VibrationFeed] = {}
         position = (start["x"], start["y"])
         self.xy: list[_XYMove] = []
         corrections: dict[tuple, np.ndarray] = {}
@@ -222,61 +251,148 @@ class _Job:
             self.xy.append(xy)
             position = hole
 
-    @property
-    def feed_limits(self) -> Limits:
-        return Limits(self.cycle.feed, self.z.acceleration, self.z.jerk)
+    def turning_point(self, hole: int) -> float:
+        """Where the Z command turns at a hole's bottom: a plain feed stroke (no pecks,
+        vibration or dwell) turns where the drive's feedback turns at the programmed
+        depth. A drive with velocity lag overshoots the end of a feed stroke (about 16 um
+        on mill3 at 1200 mm/min), one without full feed-forward falls short. The drive
+        model runs the stroke (from a steady feed) and the fast exit, and the turning
+        point moves by the error, a few rounds (the drive is linear: the first round
+        lands within an encoder count or two)."""
+        c = self.cycle
+        _, top, bottom = c.planes(hole)
+        if not c.compensate_xy or c.vibration is not None or c.peck is not None or c.dwell > 0:
+            return bottom
+        if (top, bottom) not in self._turns:
+            period = c.servo_period
+            drive = DriveModel(self.machine, period, ("z",))
+            steady = math.ceil(BOTTOM_STEADY_S / period)
+            turn = bottom
+            for _ in range(BOTTOM_ROUNDS):
+                stroke, exit_move = self._stroke(top, turn), self.fast_exit(turn).move
+                t_stroke = np.arange(math.ceil(stroke.duration / period)) * period
+                t_exit = np.arange(math.ceil(exit_move.duration / period) + steady) * period
+                before = top + c.feed * period * np.arange(steady, 0, -1)
+                pieces = [(before, np.full(steady, -c.feed), np.zeros(steady)),
+                          _z_samples(stroke, t_stroke), _z_samples(exit_move, t_exit)]
+                p, v, a = (np.concatenate([piece[q] for piece in pieces])[:, None] for q in range(3))
+                drive.reset(p[0])
+                drive.state.velocity[:] = v[0]
+                error = float(np.min(drive.run(p, v, a)[0][steady:, 0]) - bottom)
+                if abs(error) < 0.5 * float(drive.resolution[0]):
+                    break
+                turn -= error
+                if not self.machine.axes["z"].within_travel(turn):
+                    raise ValueError(f"bottom_z: the drive needs a command at {turn} m, outside the Z travel")
+            self._turns[(top, bottom)] = turn
+        return self._turns[(top, bottom)]
 
-    def _compensate_bottom(self) -> None:
-        """Move the Z command's turning point so that the drive's feedback turns at the
-        programmed depth: a drive with velocity lag overshoots the bottom of a feed
-        stroke (about 16 um on mill3 at 1200 mm/min), one without full feed-forward
-        falls short. The drive model runs the feed stroke (from a steady feed) and the
-        fast exit; the turning point moves by the error, a few rounds (the drive is
-        linear, so the first round already lands within an encoder count or two)."""
-        c, period = self.cycle, self.cycle.servo_period
-        drive = DriveModel(self.machine, period, ("z",))
-        steady = math.ceil(BOTTOM_STEADY_S / period)
-        for _ in range(BOTTOM_ROUNDS):
-            t_stroke = np.arange(math.ceil(self.feed_stroke.duration / period)) * period
-            t_exit = np.arange(math.ceil(self.fast.move.duration / period) + steady) * period
-            before = c.r_z + c.feed * period * np.arange(steady, 0, -1)
-            pieces = [(before, np.full(steady, -c.feed), np.zeros(steady)),
-                      _z_samples(self.feed_stroke, t_stroke), _z_samples(self.fast.move, t_exit)]
-            p, v, a = (np.concatenate([piece[q] for piece in pieces])[:, None] for q in range(3))
-            drive.reset(p[0])
-            drive.state.velocity[:] = v[0]
-            feedback = drive.run(p, v, a)[0][:, 0]
-            error = float(np.min(feedback[steady:]) - c.bottom_z)
-            if abs(error) < 0.5 * float(drive.resolution[0]):
-                break
-            self.bottom -= error
-            if not self.machine.axes["z"].within_travel(self.bottom):
-                raise ValueError(f"bottom_z: the drive needs a command at {self.bottom} m, outside the Z travel")
-            self.feed_stroke = _z_move(self.feed_limits, c.r_z, -c.feed, 0.0, self.bottom)
-            self.fast = self._fast_exit()
+    def _stroke(self, top: float, turn: float) -> RuckigMove:
+        """The plain feed stroke from a hole's R plane, at feed, to the turning point."""
+        if (top, turn) not in self._strokes:
+            self._strokes[(top, turn)] = _z_move(Limits(self.cycle.feed, self.z.acceleration, self.z.jerk),
+                                                 top, -self.cycle.feed, 0.0, turn)
+        return self._strokes[(top, turn)]
 
-    def _fast_exit(self) -> _Retract:
-        """Full acceleration out of the hole: mode 1 if rapid is reached below R, else 2."""
-        c, z = self.cycle, self.z
-        run = _z_move(z, self.bottom, 0.0, 0.0, None, z.velocity)
-        if _state(run, run.duration)[0] <= c.r_z:
-            move = _z_move(z, self.bottom, 0.0, 0.0, c.r_z, z.velocity)
-            return _Retract(1, move, move.duration, (c.r_z, z.velocity, 0.0))
-        t_r = _crossing(run, c.r_z)
-        return _Retract(2, run, t_r, _state(run, t_r))
+    def fast_exit(self, bottom: float) -> _Retract:
+        """Full acceleration out of a hole from ``bottom``: mode 1 if rapid is reached below R, else 2."""
+        if bottom not in self._exits:
+            c, z = self.cycle, self.z
+            run = _z_move(z, bottom, 0.0, 0.0, None, z.velocity)
+            if _state(run, run.duration)[0] <= c.r_z:
+                move = _z_move(z, bottom, 0.0, 0.0, c.r_z, z.velocity)
+                self._exits[bottom] = _Retract(1, move, move.duration, (c.r_z, z.velocity, 0.0))
+            else:
+                t_r = _crossing(run, c.r_z)
+                self._exits[bottom] = _Retract(2, run, t_r, _state(run, t_r))
+        return self._exits[bottom]
 
     def arc(self, state: tuple[float, float, float], accel: float | None = None,
             duration: float = 0.0) -> RuckigMove:
         """The air move from a state at R (or the start) to R at cutting feed."""
         lim = Limits(self.z.velocity, accel or self.z.acceleration, self.z.jerk)
-        return _z_move(lim, *state, self.cycle.r_z, -self.cycle.feed, 0.0, duration)
+        return _z_move(lim, *state, self.cycle.r_z, self.entry_velocity, 0.0, duration)
 
-    def _slow_exit(self, speed: float) -> _Retract | None:
+    @property
+    def entry_velocity(self) -> float:
+        """Z velocity at R going down: the cutting feed, or rest where a vibrated feed starts
+        (its waveform ramps up from rest, locked to the spindle angle)."""
+        return 0.0 if self.cycle.vibration is not None else -self.cycle.feed
+
+    def vibrated_stroke(self, builder: PlanBuilder, t_down: float, hole: int) -> float:
+        """S2 below R with the chip-breaking vibration: Z from rest at the hole's R to rest
+        at its bottom, the waveform locked to the spindle angle and its command
+        pre-compensated with the drive model (VibrationFeed); returns its end time. Strokes
+        are cached by length and start angle, since the timing search replans the cycle."""
+        c = self.cycle
+        _, top, bottom = c.planes(hole)
+        angle = builder.timelines[SPINDLE].position_at(t_down)
+        key = (round(top - bottom, 12), round(math.fmod(angle, 2 * math.pi), 9))
+        if key not in self._vibrated:
+            z = self.machine.axes["z"]
+            self._vibrated[key] = VibrationFeed(
+                top - bottom, c.feed * 2 * math.pi / c.spindle_speed, c.vibration, c.spindle_speed, z,
+                start_angle=angle, servo_period=c.servo_period,
+                drive_model_factory=lambda: DriveModel(self.machine, c.servo_period, ("z",)))
+        move = self._vibrated[key]
+
+        def sample(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            progress, v, a = move.sample(t)
+            return top - progress, -v, -a
+
+        builder.timelines["z"].add(Piece(t_down, move.duration, sample), bottom)
+        builder.event(t_down, "vibration_feed", start=[top], direction=[-1.0], joints=["z"],
+                      length=top - bottom, feed_per_rev=c.feed * 2 * math.pi / c.spindle_speed,
+                      field="drill", hole=hole)
+        builder.event(t_down + move.duration, "vibration_end", hole=hole)
+        return t_down + move.duration
+
+    def _pecks(self, builder: PlanBuilder, t: float, hole: int, v0: float) -> float:
+        """The peck sequence of a hole from its R (moving at v0) to rest at its bottom."""
+        c = self.cycle
+        surface, top, bottom = c.planes(hole)
+
+        def z_move(p0: float, v0: float, a0: float, p1: float, v1: float, speed: float | None) -> RuckigMove:
+            lim = self.z if speed is None else Limits(speed, self.z.acceleration, self.z.jerk)
+            return _z_move(lim, p0, v0, a0, p1, v1)
+
+        for step in peck_moves(z_move, c.peck, c.feed, top, v0, surface, bottom):
+            if step.kind == "feed" and step.peck > 0:
+                builder.event(t, "peck", hole=hole, peck=step.peck, previous_bottom=step.bottom)
+            elif step.kind == "reentry":
+                builder.event(t, "reentry", hole=hole, peck=step.peck, previous_bottom=step.bottom)
+            t = _add_z(builder, t, step.move)
+        return t
+
+    def feed_to_depth(self, builder: PlanBuilder, t_down: float, hole: int, overlapped: bool) -> float:
+        """S2 below the X/Y plane: fast down to the hole's own R if it lies lower, the feed
+        (plain, vibrated or in pecks) to the bottom, then the dwell (G82); returns when Z
+        leaves the bottom. ``overlapped``: Z arrives at the plane moving (the air arc)."""
+        c = self.cycle
+        _, top, bottom = c.planes(hole)
+        v = self.entry_velocity if overlapped else 0.0
+        t = t_down
+        if top < c.r_z - 1e-12:
+            t = _add_z(builder, t, _z_move(self.z, c.r_z, v, 0.0, top, v))
+        if c.vibration is not None:
+            end = self.vibrated_stroke(builder, t, hole)
+        elif c.peck is not None:
+            end = self._pecks(builder, t, hole, v)
+        elif overlapped:
+            end = _add_z(builder, t, self._stroke(top, self.turning_point(hole)))
+        else:
+            end = builder.linear({"z": self.turning_point(hole)}, c.feed, start=t)
+        if c.dwell > 0:
+            builder.timelines["z"].add_hold(end, c.dwell)
+            builder.event(end, "dwell", hole=hole, seconds=c.dwell)
+        return end + c.dwell
+
+    def _slow_exit(self, speed: float, bottom: float) -> _Retract | None:
         """Mode 3: reach R at ``speed`` with zero acceleration, or None if that needs an overshoot."""
         c = self.cycle
-        move = _z_move(self.z, self.bottom, 0.0, 0.0, c.r_z, speed)
+        move = _z_move(self.z, bottom, 0.0, 0.0, c.r_z, speed)
         extrema = move.trajectory.position_extrema[0]
-        if extrema.min < self.bottom - 1e-9 or extrema.max > c.r_z + 1e-9:
+        if extrema.min < bottom - 1e-9 or extrema.max > c.r_z + 1e-9:
             return None
         return _Retract(3, move, move.duration, (c.r_z, speed, 0.0))
 
@@ -284,30 +400,32 @@ class _Job:
         """Time from the bottom to R at feed over the next hole: retract plus air arc."""
         return retract.t_r + max(self.arc(retract.state).duration, air_needed)
 
-    def _best_slow_exit(self, air_needed: float) -> _Retract:
-        top = self.fast.state[1]
+    def _best_slow_exit(self, air_needed: float, bottom: float) -> _Retract:
+        top = self.fast_exit(bottom).state[1]
         speeds = np.linspace(0.0, top, MODE3_GRID + 1)[:-1]
         for _ in range(2):
-            found = [r for r in map(self._slow_exit, speeds) if r is not None]
+            found = [r for r in (self._slow_exit(v, bottom) for v in speeds) if r is not None]
             costs = [self.cost(r, air_needed) for r in found]
             best = found[int(np.argmin(costs))]
             step = speeds[1] - speeds[0]
             speeds = np.linspace(max(best.state[1] - step, 0.0), min(best.state[1] + step, top), MODE3_GRID)
         return best
 
-    def retract(self, air_needed: float) -> _Retract:
+    def retract(self, air_needed: float, hole: int) -> _Retract:
         """The retract law for a hole followed by an air arc of at least ``air_needed``."""
         forced = self.cycle.mode
+        bottom = self.turning_point(hole)
+        fast = self.fast_exit(bottom)
         if forced in (1, 2):
-            if self.fast.mode != forced:
+            if fast.mode != forced:
                 reason = ("too shallow to reach rapid below R" if forced == 1
                           else "deep enough to reach rapid below R (mode 1)")
                 raise ValueError(f"mode: {forced} is impossible here, the hole is {reason}")
-            return self.fast
-        slow = self._best_slow_exit(air_needed)
-        if forced == 3 or self.cost(slow, air_needed) < self.cost(self.fast, air_needed) - 1e-6:
+            return fast
+        slow = self._best_slow_exit(air_needed, bottom)
+        if forced == 3 or self.cost(slow, air_needed) < self.cost(fast, air_needed) - 1e-6:
             return slow
-        return self.fast
+        return fast
 
     def last_retract(self) -> tuple[int, RuckigMove, float, RuckigMove | None]:
         """S3 of the last hole to rest above R: (mode, move, time at R, stop move or None).
@@ -317,10 +435,10 @@ class _Job:
         """
         c = self.cycle
         if c.mode in (1, 2):
-            fast = self.retract(0.0)
+            fast = self.retract(0.0, self.n - 1)
             stop = _z_move(self.z, *fast.state, None, 0.0)
             return fast.mode, fast.move, fast.t_r, stop
-        move = _z_move(self.z, self.bottom, 0.0, 0.0, c.r_z + RETURN_CLEARANCE)
+        move = _z_move(self.z, self.turning_point(self.n - 1), 0.0, 0.0, c.r_z + RETURN_CLEARANCE)
         return 3, move, _crossing(move, c.r_z), None
 
 
@@ -489,7 +607,7 @@ def _emit_overlapped(job: _Job, retracts: list[_Retract]) -> Emit:
     """Overlapped cycle: e_down[i] = Z at R after the X/Y command ends, e_up[i] = X/Y start
     after Z passed R up from hole i-1; accel[i] = Z acceleration limit of hole i's air move."""
     c = job.cycle
-    approach_min = _z_move(job.z, job.start["z"], 0.0, 0.0, c.r_z, -c.feed)
+    approach_min = _z_move(job.z, job.start["z"], 0.0, 0.0, c.r_z, job.entry_velocity)
     arc_min = [approach_min.duration] + [job.arc(r.state).duration for r in retracts[:-1]]
     last_mode, last_move, last_t_r, stop = job.last_retract()
 
@@ -520,7 +638,7 @@ def _emit_overlapped(job: _Job, retracts: list[_Retract]) -> Emit:
                 gentle = accel[0] < job.z.acceleration
                 t_air = t0 if gentle else t0 + air_time - arc_min[0]
                 air = (_z_move(Limits(job.z.velocity, accel[0], job.z.jerk), job.start["z"], 0.0, 0.0,
-                               c.r_z, -c.feed, 0.0, t0 + air_time - t_air) if gentle else approach_min)
+                               c.r_z, job.entry_velocity, 0.0, t0 + air_time - t_air) if gentle else approach_min)
             else:
                 t_air = u
                 air = job.arc(retracts[i - 1].state, accel[i], air_time)
@@ -528,7 +646,7 @@ def _emit_overlapped(job: _Job, retracts: list[_Retract]) -> Emit:
             apex = air.trajectory.position_extrema[0]
             builder.event(t_air + apex.t_max, "S2", hole=i, mode=mode)
             builder.event(t_down, "R_down", hole=i, mode=mode)
-            t_s3 = _add_z(builder, t_down, job.feed_stroke)
+            t_s3 = job.feed_to_depth(builder, t_down, i, overlapped=True)
             builder.event(t_s3, "S3", hole=i, mode=mode)
             if last:
                 u = t_s3 + last_t_r
@@ -570,7 +688,7 @@ def _emit_conventional(job: _Job) -> Emit:
             t_down = builder.rapid({"z": c.r_z}, start=t_s2)
             builder.event(t_s2, "S2", hole=i, mode=None)
             builder.event(t_down, "R_down", hole=i, mode=None)
-            t_s3 = builder.linear({"z": job.bottom}, c.feed, start=t_down)
+            t_s3 = job.feed_to_depth(builder, t_down, i, overlapped=False)
             builder.event(t_s3, "S3", hole=i, mode=None)
             up = builder.rapid_move({"z": clearance})
             t_up = t_s3 + _crossing(up, c.r_z)
@@ -714,10 +832,11 @@ def plan_drilling(builder: PlanBuilder, cycle: DrillCycle) -> list[dict]:
     floor_up = np.array([0.0] + [-math.floor(xy.leave / period + 1e-9) * period
                                  if xy.move and math.isfinite(xy.leave) else 0.0 for xy in job.xy[1:]])
     xy_time = np.array([xy.duration for xy in job.xy])
+    last_bottom = job.turning_point(job.n - 1)
 
     def retracts(e_down: np.ndarray, e_up: np.ndarray) -> list[_Retract]:
         air_needed = e_up + xy_time + e_down
-        return [job.retract(air_needed[i + 1]) for i in range(job.n - 1)] + [job.fast]
+        return [job.retract(air_needed[i + 1], i) for i in range(job.n - 1)] + [job.fast_exit(last_bottom)]
 
     # One round at the command floors measures the lag margins; with them the retract
     # laws are chosen once more, then the gaps settle.
@@ -744,5 +863,10 @@ def lower_bound_time(machine: Machine, cycle: DrillCycle,
     is shorter."""
     first = start_xy if start_xy is not None else cycle.holes[0]
     job = _Job(machine, replace(cycle, compensate_xy=False), {"x": first[0], "y": first[1], "z": cycle.r_z})
-    below = job.feed_stroke.duration + job.fast.t_r
-    return sum(xy.duration for xy in job.xy) + job.n * below
+    if cycle.hole_planes is None:
+        below = job.n * (job.feed_stroke.duration + job.fast.t_r)
+    else:  # each hole from its own R (the fall from the X/Y plane to it left out) to its bottom
+        feed = Limits(cycle.feed, job.z.acceleration, job.z.jerk)
+        below = sum(_z_move(feed, top, -cycle.feed, 0.0, bottom).duration + job.fast_exit(bottom).t_r
+                    for _, top, bottom in map(cycle.planes, range(job.n)))
+    return sum(xy.duration for xy in job.xy) + below

@@ -25,15 +25,18 @@ from cnc_msgs_py.units import to_deg, to_mm, to_mm_per_min, to_rpm
 from cnc_servo_bridge.drive import DriveModel
 
 from .builder import PlanBuilder
+from .clamps import OBSTACLE_MARGIN, crossed, under_tool
 from .drilling import RETURN_CLEARANCE, DrillCycle, plan_drilling
 from .headroom import plan_within_limits
+from .hole_order import shortest_order
+from .peck import PLANE_GAP as PECK_PLANE_GAP, Peck
 from .kinematics import Kinematics
 from .motion import axis_limits, path_limits
 from .path_job import plan_path
 from .timeline import Event, Piece, Plan
 from .thread_cutting import ThreadError, ThreadSpec, check_thread, plan_thread
 from .turning import TurningError, check_outlines, plan_roughing
-from .vibration import Vibration, VibrationError, VibrationFeed
+from .vibration import Vibration, VibrationError, VibrationFeed, check_vibration, er_vibration
 
 TWO_PI = 6.283185307179586
 SERVO_PERIOD = 1e-3  # the bridge's servo period: compensation and the plan check use it
@@ -80,8 +83,18 @@ def _program_axes(machine: Machine, target: SimpleNamespace, field: str) -> list
 
 
 def vibration_of(job: SimpleNamespace) -> Vibration | None:
+    """The job's vibration; E and R without Q take the method's straight-stroke waveform
+    (vibration.er_vibration)."""
     v = job.vibration
-    return None if v is None else Vibration(D=v.D, Q=v.Q, E=v.E, R=v.R)
+    if v is None:
+        return None
+    return Vibration(D=v.D, Q=v.Q, E=v.E, R=v.R) if v.Q is not None else er_vibration(v.E, v.R)
+
+
+def _vibration_error(err: VibrationError) -> JobError:
+    """A VibrationError ('vibration.X: reason') as the JobError naming that field."""
+    name, _, reason = str(err).partition(":")
+    return JobError(name, reason.strip())
 
 
 def feed_move(builder: PlanBuilder, target: dict[str, float], feed_per_rev: float,
@@ -117,10 +130,9 @@ def feed_move(builder: PlanBuilder, target: dict[str, float], feed_per_rev: floa
                              start_angle=builder.timelines[SPINDLE].position_at(start),
                              drive_model_factory=lambda: DriveModel(machine, SERVO_PERIOD, (lead,)))
     except VibrationError as err:
-        name, _, reason = str(err).partition(":")
-        if not name.startswith("vibration"):  # about the move itself (e.g. its length)
-            name, reason = field, str(err)
-        raise JobError(name, reason.strip()) from err
+        if not str(err).startswith("vibration"):  # about the move itself (e.g. its length)
+            raise JobError(field, str(err)) from err
+        raise _vibration_error(err) from err
     builder.event(start, "vibration_feed", start=p0.tolist(), direction=direction.tolist(),
                   joints=joints, length=length, feed_per_rev=feed_per_rev, field=field)
     for dof, joint in enumerate(joints):
@@ -181,8 +193,14 @@ def plan_move(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin:
             feed_move(builder, axes, move.feed / (job.spindle_rpm / TWO_PI), vibration, f"move[{i}]")
 
 
-def drill_cycle(job: SimpleNamespace, machine: Machine, kin: Kinematics) -> DrillCycle:
-    """The drill block in axis coordinates, checked against the travel (shared with analysis)."""
+def drill_cycle(job: SimpleNamespace, machine: Machine, kin: Kinematics,
+                start_xy: tuple[float, float] | None = None) -> DrillCycle:
+    """The drill block in axis coordinates, checked against the travel (shared with analysis).
+
+    Holes are in drilling order (``order: shortest`` tours them from ``start_xy``, the
+    first hole if not given); ``cycle.order`` maps them back to the job's hole indices.
+    r_z is the plane X/Y moves above: the highest R, raised to clearance_z and over the
+    obstacles the path between the holes passes over."""
     d = job.drill
     if tilted(kin):
         if machine.layout == "mill3":
@@ -193,17 +211,68 @@ def drill_cycle(job: SimpleNamespace, machine: Machine, kin: Kinematics) -> Dril
     if d.feed > z_rapid:
         raise JobError("drill.feed", f"{to_mm_per_min(d.feed):g} mm/min is faster than the Z rapid "
                                      f"{to_mm_per_min(z_rapid):g} mm/min")
-    holes = []
-    for i, (x, y) in enumerate(d.holes):
-        bottom = to_axes(kin, {"x": x, "y": y, "z": d.surface_z - d.depth}, f"drill.holes[{i}]")
+    holes, planes = [], []
+    z_of = lambda z: to_axes(kin, {"z": z}, "drill.surface_z")["z"]  # noqa: E731  (Z is not rotated on a mill)
+    for i, ((x, y), (surface, depth)) in enumerate(zip(d.holes, d.hole_planes)):
+        bottom = to_axes(kin, {"x": x, "y": y, "z": surface - depth}, f"drill.holes[{i}]")
         check_travel(machine, bottom, f"drill.holes[{i}]")
         holes.append((bottom["x"], bottom["y"]))
-    z_of = lambda z: to_axes(kin, {"z": z}, "drill.surface_z")["z"]  # noqa: E731  (Z is not rotated on a mill)
-    r_z = z_of(d.surface_z + d.r_gap)
-    check_travel(machine, {"z": r_z + RETURN_CLEARANCE}, "drill.r_gap")
-    return DrillCycle(holes=holes, surface_z=z_of(d.surface_z), bottom_z=z_of(d.surface_z - d.depth), r_z=r_z,
+        planes.append((z_of(surface), z_of(surface + d.r_gap), bottom["z"]))
+    order = list(range(len(holes)))
+    if d.order == "shortest":
+        order = shortest_order(holes, holes[0] if start_xy is None else start_xy)
+    r_z = _xy_plane(d, planes)
+    if d.clearance_z is not None:
+        r_z = max(r_z, z_of(d.clearance_z))
+    r_z = max([r_z] + [z_of(top) for top in obstacle_tops(job, [d.holes[k] for k in order])])
+    check_travel(machine, {"z": r_z + RETURN_CLEARANCE}, "drill.r_gap" if d.clearance_z is None else "drill.clearance_z")
+    uniform = len(set(planes)) == 1 and planes[0][1] == r_z
+    return DrillCycle(holes=[holes[k] for k in order], surface_z=max(p[0] for p in planes),
+                      bottom_z=min(p[2] for p in planes), r_z=r_z,
                       feed=d.feed, overlap=d.overlap != "off", mode=None if d.mode == "auto" else d.mode,
-                      gentle_air_accel=d.gentle_air_accel)
+                      gentle_air_accel=d.gentle_air_accel, dwell=d.dwell,
+                      hole_planes=None if uniform else tuple(planes[k] for k in order),
+                      peck=_peck(d),
+                      order=tuple(order), **drill_vibration(job, machine))
+
+
+def _peck(d: SimpleNamespace) -> Peck | None:
+    return None if d.peck is None else Peck(d.peck.depth, d.peck.retract == "full", d.peck.full_every)
+
+
+def _xy_plane(d: SimpleNamespace, planes: list | tuple) -> float:
+    """The highest R, and just above it when pecks retract fully to R (peck.PLANE_GAP)."""
+    r_z = max(r for _, r, _ in planes)
+    return r_z + PECK_PLANE_GAP if d.peck is not None and (d.peck.retract == "full" or d.peck.full_every) else r_z
+
+
+def obstacle_tops(job: SimpleNamespace, path: list[list[float]]) -> list[float]:
+    """Program z (m) the tip keeps over each obstacle that the X/Y path between the holes
+    (program coordinates, in drilling order) passes over; a hole under one is refused."""
+    obstacles = job.drill.obstacles or []
+    radius = (job.tool.diameter or 0.0) / 2.0
+    touched = under_tool(obstacles, path, radius)
+    if touched is not None:
+        k, i = touched
+        raise JobError(f"drill.obstacles[{k}]", f"lies under the tool at a hole ({_mm_of(path[i])})")
+    return [obstacles[k][4] + OBSTACLE_MARGIN for k in crossed(obstacles, path, radius)]
+
+
+def _mm_of(point: list[float]) -> str:
+    return ", ".join(f"{to_mm(v):g}" for v in point) + " mm"
+
+
+def drill_vibration(job: SimpleNamespace, machine: Machine) -> dict:
+    """The drill feed's vibration and spindle speed (DrillCycle fields), checked up front
+    like a move's: no air-cut or an axis that cannot follow is refused naming min Q / max rpm."""
+    vibration = vibration_of(job)
+    if vibration is None:
+        return {}
+    try:
+        check_vibration(vibration, job.drill.feed / (job.spindle_rpm / TWO_PI), job.spindle_rpm, machine.axes["z"])
+    except VibrationError as err:
+        raise _vibration_error(err) from err
+    return {"vibration": vibration, "spindle_speed": job.spindle_rpm}
 
 
 def tilted(kin: Kinematics) -> bool:
@@ -239,6 +308,11 @@ class TiltedFrame:
 def tilted_frame(job: SimpleNamespace, machine: Machine, kin: Kinematics) -> TiltedFrame:
     """Rotaries that put the tool along program +Z, the affine map and the program-frame cycle."""
     d = job.drill
+    if job.vibration is not None:
+        raise JobError("vibration", "the drill feed vibrates along the machine's Z only: not in a tilted setup")
+    for key, default in (("clearance_z", None), ("obstacles", None), ("order", "given")):
+        if getattr(d, key) != default:
+            raise JobError(f"drill.{key}", "not available in a tilted setup yet")
     z_axis = [0.0, 0.0, 1.0]
     def joints(point: dict[str, float], field: str, previous: dict[str, float] | None = None) -> dict[str, float]:
         try:
@@ -270,14 +344,19 @@ def tilted_frame(job: SimpleNamespace, machine: Machine, kin: Kinematics) -> Til
     if d.feed > axes["z"].max_velocity:
         raise JobError("drill.feed", f"{to_mm_per_min(d.feed):g} mm/min is faster than the rapid along the "
                                      f"tilted tool axis {to_mm_per_min(axes['z'].max_velocity):g} mm/min")
+    planes = tuple((s, s + d.r_gap, s - depth) for s, depth in d.hole_planes)
+    r_z = _xy_plane(d, planes)
     frame = TiltedFrame(rotaries, origin, matrix,
-                        DrillCycle(holes=[tuple(h) for h in d.holes], surface_z=d.surface_z,
-                                   bottom_z=d.surface_z - d.depth, r_z=d.surface_z + d.r_gap, feed=d.feed,
+                        DrillCycle(holes=[tuple(h) for h in d.holes], surface_z=max(p[0] for p in planes),
+                                   bottom_z=min(p[2] for p in planes), r_z=r_z, feed=d.feed,
                                    overlap=d.overlap != "off", mode=None if d.mode == "auto" else d.mode,
-                                   gentle_air_accel=d.gentle_air_accel), frame_machine)
+                                   gentle_air_accel=d.gentle_air_accel, dwell=d.dwell,
+                                   hole_planes=None if len(set(planes)) == 1 and planes[0][1] == r_z else planes,
+                                   peck=_peck(d)),
+                        frame_machine)
     c = frame.cycle
     for i, (x, y) in enumerate(d.holes):
-        for z, field in ((c.bottom_z, f"drill.holes[{i}]"), (c.r_z + RETURN_CLEARANCE, "drill.r_gap")):
+        for z, field in ((c.planes(i)[2], f"drill.holes[{i}]"), (c.r_z + RETURN_CLEARANCE, "drill.r_gap")):
             check_travel(machine, dict(zip(XYZ, frame.to_axes([x, y, z]))), field)
     return frame
 
@@ -368,6 +447,10 @@ def _drill(builder: PlanBuilder, cycle: DrillCycle) -> None:
         name, sep, reason = first.partition(": ")
         if sep and re.fullmatch(r"(holes(\[\d+\])?|feed|mode)", name):  # a field of the drill block
             raise JobError(f"drill.{name}", reason) from err
+        if sep and name.startswith("vibration"):
+            raise JobError(name, reason) from err
+        if sep and name == "length":  # a vibrated stroke too short to ramp onto the waveform
+            raise JobError("drill.depth", reason) from err
         raise JobError("drill", first) from err
 
 
@@ -375,10 +458,15 @@ def plan_drill(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin
     """Overlapped (or conventional) drilling of a hole list, spindle at speed first."""
     if tilted(kin) and machine.layout != "mill3":
         return plan_drill_tilted(job, machine, builder, kin)
-    cycle = drill_cycle(job, machine, kin)
+    cycle = drill_cycle(job, machine, kin, (builder.position("x"), builder.position("y")))
     builder.spindle(job.spindle_rpm)
-    if builder.position("z") < cycle.r_z + RETURN_CLEARANCE:
-        builder.rapid({"z": cycle.r_z + RETURN_CLEARANCE})
+    # Over the obstacles between the start and the first hole too (the cycle keeps its plane after).
+    tip = kin.to_program({j: builder.position(j) for j in machine.linear_axes})
+    first = job.drill.holes[cycle.order[0]]
+    lift = max([cycle.r_z + RETURN_CLEARANCE] + [to_axes(kin, {"z": top}, "drill.obstacles")["z"] + RETURN_CLEARANCE
+                                                 for top in obstacle_tops(job, [[tip["x"], tip["y"]], first])])
+    if builder.position("z") < lift:
+        builder.rapid({"z": lift})
     builder.timelines["z"].add_hold(builder.end_time(), max(0.0, builder.spindle_ready - builder.end_time()))
     _drill(builder, cycle)
 

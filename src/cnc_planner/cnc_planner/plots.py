@@ -24,6 +24,7 @@ from cnc_msgs_py.units import to_mm
 from cnc_servo_bridge.aircut import AircutReport, analyze_aircut  # noqa: E402
 from cnc_servo_bridge.recording import Run  # noqa: E402
 
+from .drilling import DrillCycle  # noqa: E402
 from .jobs import drill_cycle  # noqa: E402
 from .kinematics import Kinematics  # noqa: E402
 from .report import job_window, last_job  # noqa: E402
@@ -69,10 +70,13 @@ def write_plots(run: Run, report: dict, out_dir: Path) -> list[Path]:
         written.append(_save(_drill_timing(run, job, machine, window, report), out_dir / "drill_timing.png"))
     if "turn" in report:
         written.append(_save(_turn_passes(run, job, machine, window), out_dir / "turn_passes.png"))
-    if "aircut" in report:
+    # a drill job judges its air-cuts per hole: the figure summarises its first hole
+    holes = report.get("drill", {}).get("holes", [])
+    summary = report.get("aircut") or (holes[0].get("aircut") if holes else None)
+    if summary and summary.get("feedback"):
         feed = _first_vibrating_feed(run, report["job_id"])
         if feed is not None:
-            written.append(_save(_aircut(feed, report["aircut"]), out_dir / "aircut.png"))
+            written.append(_save(_aircut(feed, summary), out_dir / "aircut.png"))
             written.append(_save(_aircut_map(feed), out_dir / "aircut_map.png"))
     return written
 
@@ -160,10 +164,18 @@ def _following_error(run: Run, window: np.ndarray, report: dict) -> plt.Figure:
     return fig
 
 
+def _cycle(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray) -> DrillCycle:
+    """The drill cycle as planned from where the job started (its hole order and X/Y plane)."""
+    first = run.feedback[window][0]
+    return drill_cycle(job, machine, Kinematics(machine, job.setup, job.tool),
+                       (float(first[run.column("x")]), float(first[run.column("y")])))
+
+
 def _drill_xz(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray) -> plt.Figure:
-    """The tool path in X-Z: feed below R inside the holes, air arcs above R between them."""
-    cycle = drill_cycle(job, machine, Kinematics(machine, job.setup, job.tool))
+    """The tool path in X-Z: feed below R inside the holes, air arcs above R between them,
+    and the obstacles (clamps) the arcs pass over."""
     cx, cz = run.column("x"), run.column("z")
+    cycle = _cycle(run, job, machine, window)
     every = _stride(int(window.sum()))
     x, z = run.feedback[window][every, cx] * MM, run.feedback[window][every, cz] * MM
     cmd = (run.command_t >= run.feedback_t[window][0]) & (run.command_t <= run.feedback_t[window][-1])
@@ -175,10 +187,16 @@ def _drill_xz(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarr
     fig, ax = plt.subplots(figsize=(11, 5))
     depth = surface - bottom
     ax.axhspan(bottom - 0.6 * depth, surface, color="tan", alpha=0.35, lw=0, label="workpiece")
-    for i, hx in enumerate(holes_x):
-        ax.add_patch(Rectangle((hx - width / 2, bottom), width, depth, color="white", ec="0.5", lw=0.6))
-        ax.text(hx, bottom - 0.25 * depth, f"hole {i}", ha="center", va="top", fontsize=8)
-    ax.plot(holes_x, np.full(len(holes_x), bottom), "k^", ms=6, label=f"hole bottom z={bottom:.2f}")
+    planes = np.array([cycle.planes(i) for i in range(len(holes_x))]) * MM  # surface, R, bottom per hole
+    for i, (hx, (top, _, low)) in enumerate(zip(holes_x, planes)):
+        ax.add_patch(Rectangle((hx - width / 2, low), width, top - low, color="white", ec="0.5", lw=0.6))
+        ax.text(hx, bottom - 0.25 * depth, f"hole {cycle.order[i] if cycle.order else i}", ha="center", va="top",
+                fontsize=8)
+    ax.plot(holes_x, planes[:, 2], "k^", ms=6, label=f"hole bottom z={bottom:.2f}" if np.ptp(planes[:, 2]) == 0
+            else "hole bottoms")
+    for k, (x0, _, x1, _, top) in enumerate(job.drill.obstacles or []):  # program = axis on a plain setup
+        ax.add_patch(Rectangle((x0 * MM, surface), (x1 - x0) * MM, top * MM - surface, color="0.55", alpha=0.6,
+                               hatch="//", label="obstacle (clamp)" if k == 0 else None))
     ax.axhline(surface, color="saddlebrown", lw=1.2, label=f"surface z={surface:.2f}")
     ax.axhline(r_z, color="tab:orange", lw=1.2, ls="--", label=f"R plane z={r_z:.2f}")
     ax.plot(command[:, cx], command[:, cz], color=COMMAND, lw=0.7, ls=":", label="command")
@@ -221,7 +239,7 @@ def _phase_bars(run: Run, job_id: str, holes: list[dict], z_stop: float) -> dict
 def _drill_timing(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray,
                   report: dict) -> plt.Figure:
     """X and Z position and velocity over time with the S1/S2/S3 chart: where the phases overlap."""
-    cycle = drill_cycle(job, machine, Kinematics(machine, job.setup, job.tool))
+    cycle = _cycle(run, job, machine, window)
     t = run.feedback_t[window]
     t0 = t[0]
     fb, vel = run.feedback[window], run.feedback_velocity[window]
@@ -413,8 +431,9 @@ def _aircut(feed: SimpleNamespace, summary: dict) -> plt.Figure:
                   "revolution n+k plotted k F higher, as cut")
     ax.grid(alpha=0.3)
     fb = summary["feedback"]
+    scope = "first hole below the surface" if "aircut_fraction" in fb else "whole job"
     ax.set_title(f"chip breaking, first vibrating feed, n = rev {feed.n - feed.first_rev} of the feed\n"
-                 f"whole job on feedback: air-cut in {fb['revolutions_with_aircut']}/{fb['revolutions']} revs, "
+                 f"{scope} on feedback: air-cut in {fb['revolutions_with_aircut']}/{fb['revolutions']} revs, "
                  f"longest chip {fb['max_chip_revs']:.2f} rev", fontsize=10)
     fig.tight_layout()
     return fig

@@ -63,6 +63,8 @@ def plan_segments(job: SimpleNamespace, machine: Machine,
     count = segment_count(job)
     kin = Kinematics(machine, job.setup, job.tool)
     whole = _check_whole(job, machine, kin, start) if count > 1 else None
+    if whole is not None and job.drill.order == "shortest":
+        job = _in_order(job, whole.order)  # the whole job's tour, then cut into segments
     size = SEGMENT_HOLES if job.kind == "drill" else SEGMENT_MOVES
     speed = 0.0
     for k in range(count):
@@ -94,7 +96,7 @@ def _check_whole(job: SimpleNamespace, machine: Machine, kin: Kinematics,
                  start: dict[str, float]) -> DrillCycle | None:
     """Every hole or target against the travel; a drill job's cycle, for its tolerances."""
     if job.kind == "drill":
-        return drill_cycle(job, machine, kin)
+        return drill_cycle(job, machine, kin, (start.get("x", 0.0), start.get("y", 0.0)))
     move_targets(job, machine, kin, start)
     return None
 
@@ -102,11 +104,20 @@ def _check_whole(job: SimpleNamespace, machine: Machine, kin: Kinematics,
 def _part(job: SimpleNamespace, lo: int, hi: int) -> SimpleNamespace:
     """The job with only its holes or moves lo..hi-1."""
     if job.kind == "drill":
-        return SimpleNamespace(**{**vars(job), "drill": SimpleNamespace(**{**vars(job.drill),
-                                                                           "holes": job.drill.holes[lo:hi]})})
+        d = job.drill
+        return SimpleNamespace(**{**vars(job), "drill": SimpleNamespace(**{
+            **vars(d), "holes": d.holes[lo:hi], "hole_planes": d.hole_planes[lo:hi]})})
     if job.kind == "move":
         return SimpleNamespace(**{**vars(job), "move": job.move[lo:hi]})
     return job
+
+
+def _in_order(job: SimpleNamespace, order: tuple[int, ...]) -> SimpleNamespace:
+    """The drill job with its holes in ``order``, drilled as given."""
+    d = job.drill
+    return SimpleNamespace(**{**vars(job), "drill": SimpleNamespace(**{
+        **vars(d), "holes": [d.holes[k] for k in order], "hole_planes": [d.hole_planes[k] for k in order],
+        "order": "given"})})
 
 
 def _hold_until_settled(builder: PlanBuilder, cycle: DrillCycle, kin: Kinematics) -> None:

@@ -14,6 +14,10 @@ spent in the retreat (1/2 with D, R/E with E and R). The phase warp phi runs the
 stroke and the retreat at their own pace but with the same rate at both points, so
 acceleration and jerk are continuous and the axis limits follow from the maxima of w's
 derivatives.
+
+E and R without Q (er_vibration) follow the method's drawing instead: straight strokes at
+one speed (straight_waveform, reversals jerk-limited blends), the retreat a little past
+B1 (ER_DEPARTURE), since the drawing itself only touches the previous revolution.
 """
 from __future__ import annotations
 
@@ -40,6 +44,12 @@ COMPENSATION_PASSES = 3  # simulate-and-correct passes; the first already lands 
 INVERSE_BAND = (0.15, 0.35)  # share of the servo rate: full inverse below, faded out up to
 QUANTISATION_SHARE = 0.05  # of the acceleration limit that chasing encoder counts may cost
 SETTLED = 1.0e-9  # m: command correction below this counts as settled
+# E and R without Q: the method's straight strokes (equal_speed_q), each reversal this share
+# of a vibration long (jerk-limited; 0.16 rev at E 2), and the retreat running ER_DEPARTURE
+# feeds per rev past B1: the smallest departure (0.01 steps) that air-cuts in every
+# vibration by >= 1 um on the commands and on feedback for E 2, R 0.5 (README).
+STRAIGHT_CORNER = 0.08
+ER_DEPARTURE = 0.03
 
 
 class VibrationError(ValueError):
@@ -61,6 +71,7 @@ class Vibration:
     Q: float
     E: float | None = None
     R: float | None = None
+    corner: float | None = None  # straight strokes with reversals this share of a cycle long
 
     def __post_init__(self) -> None:
         if (self.D is None) == (self.E is None and self.R is None):
@@ -83,6 +94,12 @@ class Vibration:
                 f"vibration (E = {self.E:g} revs)"
             )
 
+    def shape(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The waveform and its derivatives: cosine strokes, or straight ones (``corner``)."""
+        if self.corner is None:
+            return waveform(u, self._retreat_fraction)
+        return straight_waveform(u, self._retreat_fraction, self.corner)
+
     @property
     def vibrations_per_rev(self) -> float:
         """The effective D: D itself, or 1/E."""
@@ -95,6 +112,31 @@ class Vibration:
     @property
     def _field(self) -> str:
         return "vibration.D" if self.D is not None else "vibration.E"
+
+
+def equal_speed_q(E: float, R: float) -> float:
+    """Q of the method's E/R waveform: forward and backward at one speed, the turning point
+    A1 R revolutions before the return point B1, B1 E revolutions after the start.
+
+    Over a vibration the feed line advances E*F; forward (E - R revs) and back (R revs) at
+    one speed v: v*(E - R) - v*R = E*F, so v = E*F/(E - 2R) and A1 stands
+    v*(E - R) - (E - R)*F = Q*F ahead of the feed line. Needs R < E/2.
+
+    With straight strokes (the method's drawing) that waveform only touches the previous
+    revolution's path: for E 2, R 0.5 the forward stroke from B1 retraces it for half a
+    revolution with zero clearance, and breaks no chip (its _min_q is exactly this Q).
+    ``er_vibration`` therefore retreats ER_DEPARTURE past B1.
+    """
+    if not 0.0 < 2.0 * R < E:
+        raise VibrationError(f"vibration.R: equal forward and backward speed needs 0 < R < E/2 = {E / 2:g}")
+    return 2.0 * R * (E - R) / (E - 2.0 * R)
+
+
+def er_vibration(E: float, R: float) -> Vibration:
+    """E and R without Q, as the method draws it: straight strokes at one speed, reversals
+    STRAIGHT_CORNER of a vibration long, the retreat ER_DEPARTURE feeds past B1 (Q a little
+    above equal_speed_q), so that the chip really breaks."""
+    return Vibration(D=None, Q=equal_speed_q(E, R) + ER_DEPARTURE, E=E, R=R, corner=STRAIGHT_CORNER)
 
 
 def _require_positive(field: str, value: object) -> None:
@@ -128,6 +170,29 @@ def waveform(u: np.ndarray, r: float = 0.5) -> tuple[np.ndarray, np.ndarray, np.
     return w, w1, w2, w3
 
 
+def straight_waveform(u: np.ndarray, r: float, corner: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The method's drawing: w rises at one speed from B (u = 0) to A (u = 1 - r, w = 1) and
+    falls at another back to B, each reversal a jerk-limited blend ``corner`` of a cycle
+    long centred on the vertex (the velocity follows a half cosine, so the acceleration is
+    continuous). Outside the reversals w is the sharp triangle; inside it stays a little
+    short of the vertex (by about 0.09 * corner * the change of slope)."""
+    x = np.mod(u, 1.0)
+    s_f, s_b = 1.0 / (1.0 - r), -1.0 / r
+    w = np.where(x < 1.0 - r, s_f * x, 1.0 + s_b * (x - (1.0 - r)))
+    w1 = np.where(x < 1.0 - r, s_f, s_b)
+    w2, w3 = np.zeros_like(x), np.zeros_like(x)
+    for vertex, change in ((0.0, s_f - s_b), (1.0 - r, s_b - s_f)):
+        t = np.mod(x - vertex + corner / 2.0, 1.0)  # from the reversal's start
+        inside = t < corner
+        k = np.pi * t[inside] / corner
+        before = np.where(t[inside] < corner / 2.0, 0.0, 1.0)  # the sharp slope switches at the vertex
+        w[inside] += change * (corner * (k / np.pi / 2.0 - np.sin(k) / (2 * np.pi)) - before * (t[inside] - corner / 2))
+        w1[inside] += change * ((1.0 - np.cos(k)) / 2.0 - before)
+        w2[inside] = change * np.pi / (2 * corner) * np.sin(k)
+        w3[inside] = change * np.pi**2 / (2 * corner**2) * np.cos(k)
+    return w, w1, w2, w3
+
+
 def _min_q(vib: Vibration) -> float:
     """Smallest Q at which some return reaches the surface of an earlier revolution.
 
@@ -135,12 +200,12 @@ def _min_q(vib: Vibration) -> float:
     of m revolutions ago stood at least m*F/(Q*F) further ahead: Q > m / max(w(u - mD) - w(u)).
     """
     u = np.arange(PHASE_SAMPLES) / PHASE_SAMPLES
-    w = waveform(u, vib._retreat_fraction)[0]
+    w = vib.shape(u)[0]
     best = math.inf
     for m in range(1, MAX_EARLIER_REVS + 1):
         if m >= best:
             break
-        gain = np.max(waveform(u - m * vib.vibrations_per_rev, vib._retreat_fraction)[0] - w)
+        gain = np.max(vib.shape(u - m * vib.vibrations_per_rev)[0] - w)
         if gain > 1e-9:
             best = min(best, m / gain)
     return best
@@ -155,7 +220,7 @@ def _speed_limits(
     so each limit gives a spindle speed at which the waveform just touches it.
     """
     u = np.arange(PHASE_SAMPLES) / PHASE_SAMPLES
-    _, w1, w2, w3 = waveform(u, vib._retreat_fraction)
+    _, w1, w2, w3 = vib.shape(u)
     d, amp = vib.vibrations_per_rev, vib.Q * feed_per_rev
     # progress per radian of spindle, and its derivatives: velocity = omega * that, etc.
     per_rad = [
@@ -319,7 +384,7 @@ class VibrationFeed:
         d = self._vib.vibrations_per_rev
         theta = self._start_angle + self._omega * t
         rate = d * self._omega / TWO_PI  # vibration cycles per second
-        w, w1, w2, _ = waveform(d * theta / TWO_PI, self._vib._retreat_fraction)
+        w, w1, w2, _ = self._vib.shape(d * theta / TWO_PI)
         amp = self._vib.Q * self._f
         s = self._f * (theta - self._feed_origin) / TWO_PI + amp * w
         v = self._f * self._omega / TWO_PI + amp * rate * w1
@@ -352,7 +417,7 @@ class VibrationFeed:
         f, amp = self._f, self._vib.Q * self._f
         u = np.arange(PHASE_SAMPLES + 1) / PHASE_SAMPLES
         # furthest the tool gets ahead of a cycle's return point
-        reach = float(np.max(f * u / d + amp * waveform(u, self._vib._retreat_fraction)[0]))
+        reach = float(np.max(f * u / d + amp * self._vib.shape(u)[0]))
         # the first cycle (from return point B_k) that can reach length
         k = math.ceil(d * ((self._length - reach) * TWO_PI / f + self._feed_origin) / TWO_PI)
         t_reach = k * TWO_PI / (d * self._omega) - self._start_angle / self._omega

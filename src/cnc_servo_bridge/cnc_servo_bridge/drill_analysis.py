@@ -50,7 +50,7 @@ def _moving_span(t: np.ndarray, axes: np.ndarray, threshold: float) -> tuple[flo
 def analyze_drilling(
     t: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray,
     holes: list[tuple[float, float]], r_z: float, xy_tolerance: float,
-    surface_z: float | None = None,
+    surface_z: float | list[float] | None = None,
 ) -> dict:
     """Per-hole overlap timing and job-wide safety of a drilling cycle (SI in, JSON out).
 
@@ -62,7 +62,8 @@ def analyze_drilling(
       overlap_up_s    how long Z still rose after X/Y left the hole, S3 overlapping S1
       cycle_time_s    from the previous hole's r_up (the job's first motion for the
                       first hole) to this hole's r_up
-      depth_mm        deepest point below surface_z, when surface_z is given
+      depth_mm        deepest point below surface_z (one for all holes or one per
+                      hole), when surface_z is given
     Job: ``safety_violations`` (samples below R off their hole) and ``cycle_time_s``
     from the first to the last axis motion (an axis farther than the tolerance from
     its rest at the start / at the end).
@@ -88,6 +89,7 @@ def analyze_drilling(
         last[j] = v
     drilled = sorted(first, key=lambda j: starts[first[j]])
     bounds = [0] + [int(ends[last[j]]) for j in drilled] + [len(t)]
+    surfaces = None if surface_z is None else np.broadcast_to(np.asarray(surface_z, float), (len(h),))
     rows = {j: _hole(j, h[j], surface_z) for j in range(len(h))}
     r_up_prev = job_start
     for rank, j in enumerate(drilled):
@@ -113,13 +115,26 @@ def analyze_drilling(
             "overlap_up_s": overlap_up, "cycle_time_s": r_up - r_up_prev,
         })
         if surface_z is not None:
-            rows[j]["depth_mm"] = to_mm(float(surface_z - zw[kd:ku].min()))
+            rows[j]["depth_mm"] = to_mm(float(surfaces[j] - zw[kd:ku].min()))
         r_up_prev = r_up
     return {"holes": [rows[j] for j in range(len(h))], "safety_violations": int(np.sum(off)),
             "cycle_time_s": job_end - job_start}
 
 
-def _hole(index: int, xy: np.ndarray, surface_z: float | None) -> dict:
+def obstacle_clearance(x: np.ndarray, y: np.ndarray, z: np.ndarray, obstacles: list[list[float]],
+                       radius: float) -> list[float | None]:
+    """Per obstacle [x0, y0, x1, y1, top_z], the lowest height (m) of the tip above its top
+    while the tool (a disk of ``radius`` around the tip) overlaps its box; None if never."""
+    out: list[float | None] = []
+    for x0, y0, x1, y1, top in obstacles:
+        dx = np.maximum(np.maximum(x0 - x, x - x1), 0.0)
+        dy = np.maximum(np.maximum(y0 - y, y - y1), 0.0)
+        over = np.hypot(dx, dy) < radius if radius > 0 else (dx == 0) & (dy == 0)
+        out.append(float(np.min(z[over]) - top) if over.any() else None)
+    return out
+
+
+def _hole(index: int, xy: np.ndarray, surface_z: float | list[float] | None) -> dict:
     """A hole's row before analysis: every time None until the hole is found drilled."""
     row = {"index": index, "x_mm": to_mm(float(xy[0])), "y_mm": to_mm(float(xy[1])),
            "in_position_s": None, "r_down_s": None, "r_up_s": None,

@@ -1,0 +1,104 @@
+"""Deep holes (depth 5x the diameter): chip breaking by vibration against pecking, on mill3.
+
+20 holes of 3 mm, 15 mm deep, on a 4 x 5 grid at 8 mm pitch; every way is planned from a
+job document, its commands run through the servo drive model every 1 ms, and the feedback
+judged: cycle time (first to last axis motion) and the longest chip, in spindle revolutions
+and mm of depth (analyze_aircut per hole, from the surface to the bottom: the longest
+stretch the tool cuts without once being behind the surface cut before). Ways:
+
+- vibration: D 1.5, Q 1.2 on the Z feed at 0.1 mm/rev, at the highest spindle speed the
+  Z axis follows (its jerk limit, 200 m/s^3, caps it; check_vibration names it);
+- G83: pecks of 1 x D with a full retract to R, same speed and feed per rev, and at
+  3000 rpm (what the drill would run without the vibration's speed cap);
+- G73: chip-break retracts, a full one every 3rd, at 3000 rpm.
+
+Run from the workspace root:  python bench/deep_holes.py  (a few minutes). Writes the table
+to bench/results/deep_holes.txt as well.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT / "src" / p) for p in ("cnc_msgs_py", "cnc_planner", "cnc_servo_bridge")]
+
+from cnc_msgs_py.job import parse_job  # noqa: E402
+from cnc_msgs_py.machine import SPINDLE, load_machine  # noqa: E402
+from cnc_planner.jobs import plan_job  # noqa: E402
+from cnc_planner.report import simulated_feedback  # noqa: E402
+from cnc_planner.vibration import Vibration, _speed_limits  # noqa: E402
+from cnc_servo_bridge.aircut import analyze_aircut  # noqa: E402
+from cnc_servo_bridge.drill_analysis import analyze_drilling  # noqa: E402
+from publish import write_result  # noqa: E402
+
+MACHINE = load_machine("mill3")
+DIAMETER_MM, DEPTH_MM, PITCH_MM = 3.0, 15.0, 8.0
+FEED_PER_REV_MM = 0.1
+START = {"x": -0.008, "y": 0.0, "z": 0.05}
+HOLES = [[PITCH_MM * i, PITCH_MM * j] for j in range(4) for i in range(5)]
+
+
+def max_vibration_rpm(vib: Vibration) -> float:
+    """The highest spindle speed (rpm, rounded down to 10) at which Z follows the vibration."""
+    omega = min(_speed_limits(vib, FEED_PER_REV_MM * 1e-3, MACHINE.axes["z"]))[0]
+    return math.floor(omega * 60.0 / (2 * math.pi) / 10.0) * 10.0
+
+
+def job(rpm: float, **drill) -> dict:
+    return {"schema": "cnc_job/1", "job_id": "deep-holes", "kind": "drill", "machine": "mill3",
+            "tool": {"diameter": DIAMETER_MM}, "spindle_rpm": rpm,
+            "drill": {"holes": HOLES, "depth": DEPTH_MM, "r_gap": 2.0, "feed": FEED_PER_REV_MM * rpm, **drill}}
+
+
+def judge(doc: dict) -> tuple[float, float, float, float]:
+    """(planning s, cycle time s, longest chip revs, longest chip mm of depth) on feedback."""
+    parsed = parse_job(doc)
+    start = time.perf_counter()
+    plan = plan_job(parsed, MACHINE, START)
+    planning = time.perf_counter() - start
+    t, fb = simulated_feedback(plan, MACHINE)
+    x, y, z, spindle = (fb[:, plan.joints.index(j)] for j in ("x", "y", "z", SPINDLE))
+    holes = [(h[0] * 1e-3, h[1] * 1e-3) for h in HOLES]
+    r_z = 2e-3
+    result = analyze_drilling(t, x, y, z, holes, r_z, 1e-5, 0.0)
+    longest = 0.0
+    for hole in result["holes"]:
+        inside = (t >= hole["r_down_s"]) & (t <= hole["r_up_s"])
+        cut = inside & (np.arange(len(t)) >= np.argmax(inside & (z < 0.0)))
+        longest = max(longest, analyze_aircut(spindle[cut], -z[cut]).max_chip_revs)
+    assert result["safety_violations"] == 0
+    return planning, result["cycle_time_s"], longest, longest * FEED_PER_REV_MM
+
+
+def main() -> None:
+    vib = {"D": 1.5, "Q": 1.2}
+    slow = max_vibration_rpm(Vibration(D=1.5, Q=1.2))
+    ways = [
+        (f"vibration D1.5 Q1.2, {slow:.0f} rpm", job(slow), vib),
+        (f"G83 peck 3 mm (1 x D), {slow:.0f} rpm", job(slow, peck={"depth": DIAMETER_MM}), None),
+        ("G83 peck 3 mm (1 x D), 3000 rpm", job(3000, peck={"depth": DIAMETER_MM}), None),
+        ("G73 break 3 mm, full every 3rd, 3000 rpm",
+         job(3000, peck={"depth": DIAMETER_MM, "retract": "break", "full_every": 3}), None),
+    ]
+    lines = [f"Deep holes on mill3: {len(HOLES)} holes of {DIAMETER_MM:g} mm, {DEPTH_MM:g} mm deep "
+             f"({DEPTH_MM / DIAMETER_MM:g} x D), {PITCH_MM:g} mm pitch, {FEED_PER_REV_MM:g} mm/rev; on drive-model feedback",
+             f"{'way':44s} {'plan s':>7s} {'cycle s':>8s} {'chip revs':>10s} {'chip mm':>8s}"]
+    for name, doc, vibration in ways:
+        if vibration is not None:
+            doc["vibration"] = vibration
+        planning, cycle, revs, mm = judge(doc)
+        lines.append(f"{name:44s} {planning:7.1f} {cycle:8.2f} {revs:10.2f} {mm:8.2f}")
+        print(lines[-1], flush=True)
+    lines.append("chip: the longest stretch cut without an air-cut (analyze_aircut), per hole from the surface")
+    text = "\n".join(lines)
+    print(text)
+    write_result("deep_holes.txt", text)
+
+
+if __name__ == "__main__":
+    main()

@@ -328,6 +328,7 @@ class _XYCommand:
         self.period = period
         self.entries: list[tuple[float, _XYMove, float]] = []  # (move start, move, correction start)
         self._cache: tuple[tuple, dict] | None = None
+        self._reach: np.ndarray | None = None
 
     def add(self, t_s1: float, xy: _XYMove) -> None:
         lead = XY_COMMAND_LEAD * self.period
@@ -343,32 +344,46 @@ class _XYCommand:
                    for t, xy, c in self.entries)
 
     def sample(self, ts: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """Commands at sorted instants ts. Only the entries that reach into [ts[0], ts[-1]]
+        are evaluated, each on its own index range, so a chunk costs the same at any hole."""
         key = (len(ts), float(ts[0]), float(ts[-1])) if len(ts) else (0, 0.0, 0.0)
         if self._cache is not None and self._cache[0] == key:
             return self._cache[1]
-        out = {j: [np.full_like(ts, self.start[j]), np.zeros_like(ts), np.zeros_like(ts)] for j in XY}
-        for t_s1, xy, c0 in self.entries:
-            if len(ts) == 0:
+        first = self._first_entry(ts[0]) if len(ts) else len(self.entries)
+        held = dict(self.start)
+        for _, xy, _ in self.entries[:first]:
+            held.update({j: xy.target[j] for j in xy.joints})
+        out = {j: [np.full_like(ts, held[j]), np.zeros_like(ts), np.zeros_like(ts)] for j in XY}
+        for t_s1, xy, c0 in self.entries[first:]:
+            if len(ts) == 0 or min(t_s1, c0) > ts[-1]:
                 break
-            p_end = [xy.target[j] for j in xy.joints]
-            after = ts >= t_s1 + xy.duration
-            for dof, j in enumerate(xy.joints):
-                out[j][0][after] = p_end[dof]
-            inside = (ts >= t_s1) & ~after
-            if inside.any():
-                pva = xy.move.sample_all(ts[inside] - t_s1)
+            lo, hi = np.searchsorted(ts, [t_s1, t_s1 + xy.duration], side="left")
+            for j in xy.joints:
+                out[j][0][hi:] = xy.target[j]
+            if hi > lo:
+                pva = xy.move.sample_all(ts[lo:hi] - t_s1)
                 for dof, j in enumerate(xy.joints):
                     for q in range(3):
-                        out[j][q][inside] = pva[q][:, dof]
+                        out[j][q][lo:hi] = pva[q][:, dof]
             k = xy.correction.shape[1]
-            span = (ts >= c0) & (ts <= c0 + (k - 1) * self.period)
-            if span.any():
+            lo = np.searchsorted(ts, c0, side="left")
+            hi = np.searchsorted(ts, c0 + (k - 1) * self.period, side="right")
+            if hi > lo:
                 grid = np.arange(k) * self.period
                 for dof, j in enumerate(xy.joints):
                     for q in range(3):
-                        out[j][q][span] += np.interp(ts[span] - c0, grid, xy.correction[q, :, dof])
+                        out[j][q][lo:hi] += np.interp(ts[lo:hi] - c0, grid, xy.correction[q, :, dof])
         self._cache = (key, out)
         return out
+
+    def _first_entry(self, t: float) -> int:
+        """Index of the first entry whose move or correction may still act at time t."""
+        if self._reach is None or len(self._reach) != len(self.entries):
+            # Latest instant each entry or an earlier one acts on (a running maximum).
+            ends = [max(t_s1 + xy.duration, c + (xy.correction.shape[1] - 1) * self.period)
+                    for t_s1, xy, c in self.entries]
+            self._reach = np.maximum.accumulate(ends) if ends else np.zeros(0)
+        return int(np.searchsorted(self._reach, t, side="left"))
 
     def write(self, builder: PlanBuilder) -> None:
         """Add the commands to the builder: one piece per X/Y axis over the whole cycle."""
@@ -395,8 +410,7 @@ def _add_z(builder: PlanBuilder, start: float, move: RuckigMove, duration: float
 
 def _air_energy(move: RuckigMove) -> float:
     """Integral of a_z^2 dt over an air move: the heat/power proxy of the gentle variant."""
-    ts = np.arange(0.0, move.duration, FINE_STEP)
-    a = np.array([move.trajectory.at_time(float(t))[2][0] for t in ts])
+    a = move.sample_all(np.arange(0.0, move.duration, FINE_STEP))[2][:, 0]
     return float(np.sum(a * a) * FINE_STEP)
 
 

@@ -45,8 +45,9 @@ class BridgeNode(Node):
         self.publish_every = max(1, round(NS / rate / self.period_ns))
         clock_rate = self.declare_parameter("clock_rate", 100.0).value
         self.clock_every = max(1, round(NS / clock_rate / self.period_ns))
-        # Few steps per callback so that setpoint chunks (a stop!) are taken between batches.
-        self.max_steps = self.declare_parameter("steps_per_callback", 10).value
+        # Bounded machine time per callback (0.1 s) so that setpoint chunks (a stop!) are
+        # taken between batches; the loop steps them in blocks (ServoLoop.run).
+        self.max_steps = self.declare_parameter("steps_per_callback", 100).value
         start = self.declare_parameter("start_position", list(machine.home_position)).value
         self.loop = ServoLoop(machine, self.period_ns, np.asarray(start, dtype=float))
         self.joints = list(machine.joint_names)
@@ -93,25 +94,29 @@ class BridgeNode(Node):
     def run(self) -> None:
         """Step the servo loop as far as time (sim: setpoints; real time: the wall) allows."""
         if self.simulation:
-            for _ in range(self.max_steps):
-                if not self.lockstep.may_step(self.loop, self.t_ns, time.monotonic()):
-                    break
-                self._step()
+            budget = self.max_steps
+            while budget > 0 and self.lockstep.may_step(self.loop, self.t_ns, time.monotonic()):
+                budget -= self._steps(budget)
         else:
             now = self.get_clock().now().nanoseconds
             while self.t_ns + self.period_ns <= now:
-                self._step()
+                self._steps((now - self.t_ns) // self.period_ns)
 
-    def _step(self) -> None:
-        feedback = self.loop.step(self.t_ns)
-        if self.clock_pub is not None and self.steps % self.clock_every == 0:
-            self.clock_pub.publish(Clock(clock=stamp(feedback.stamp_ns)))
-        if self.steps % self.publish_every == 0:
-            self.publish_feedback(feedback)
-        if self.steps % 100 == 0 or self.loop.alarm != self.reported_alarm:
-            self.publish_diagnostics()
-        self.steps += 1
-        self.t_ns += self.period_ns
+    def _steps(self, count: int) -> int:
+        """Take up to ``count`` servo steps (a block where the loop can) and publish every
+        sample they produced; returns how many were taken."""
+        taken = self.loop.run(self.t_ns, count)
+        for i, feedback in enumerate(taken, start=1 - len(taken)):
+            if self.clock_pub is not None and self.steps % self.clock_every == 0:
+                self.clock_pub.publish(Clock(clock=stamp(feedback.stamp_ns)))
+            if self.steps % self.publish_every == 0:
+                self.publish_feedback(feedback)
+            # An alarm can only come from a block's last step (i == 0).
+            if self.steps % 100 == 0 or (i == 0 and self.loop.alarm != self.reported_alarm):
+                self.publish_diagnostics()
+            self.steps += 1
+            self.t_ns += self.period_ns
+        return len(taken)
 
     def publish_feedback(self, feedback: Feedback) -> None:
         msg = JointState(name=self.joints, position=feedback.positions.tolist(), velocity=feedback.velocities.tolist())

@@ -30,14 +30,15 @@ def test_a_job_runs_in_real_time_mode(tmp_path):
 
 def test_planning_the_next_job_does_not_starve_the_running_one(tmp_path):
     """Goals that take longer to plan than the buffered setpoints last (0.3 s; four 50-hole
-    plates, each about 0.1-0.2 s since planning got fast) arrive while a job runs in real
-    time: they are planned beside the stream, not in its way."""
+    plates of different depths, each about 0.1 s when the CPU is free, and not
+    sharing the retract search's cache) arrive while a job runs in real time: they are
+    planned beside the stream, not in its way."""
     running = {"schema": "cnc_job/1", "job_id": "rt-run", "kind": "move", "machine": "mill3",
                "move": [{"rapid": {"x": 20.0}}, {"linear": {"x": 0.0}, "feed": 150}]}
     plates = [{"schema": "cnc_job/1", "job_id": f"rt-plate-{k}", "kind": "drill", "machine": "mill3",
                "spindle_rpm": 3000,
                "drill": {"holes": [[5.0 * (i % 10) + k, 5.0 * (i // 10)] for i in range(50)],
-                         "surface_z": 0.0, "depth": 5.0, "r_gap": 2.0, "feed": 1200}} for k in range(4)]
+                         "surface_z": 0.0, "depth": 5.0 + k, "r_gap": 2.0, "feed": 1200}} for k in range(4)]
     ids = [p["job_id"] for p in plates]
     with Session("mill3", tmp_path / "bag", simulation=False) as session:
         session.submit(json.dumps(running))

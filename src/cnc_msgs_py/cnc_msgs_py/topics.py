@@ -11,6 +11,8 @@ DIAGNOSTICS = "/diagnostics"
 INJECT_FAULT = "inject_fault"  # bridge fault injection (std_msgs/String, JSON)
 ALARM_RESET = "alarm_reset"  # acknowledges a latched bridge alarm (std_msgs/String: who/why)
 CLOCK = "/clock"
+RECORDED_UNTIL = "recorded_until"  # recorder -> simulated bridge: stamp of the last joint_states
+# it has written (builtin_interfaces/Time), so the bridge's clock waits for a slow recorder
 
 # Depths: a chunk is ~0.1 s of setpoints; keep a few seconds of them queued.
 TRAJECTORY_DEPTH = 100

@@ -31,6 +31,10 @@ from .servo import Feedback, ServoLoop
 from .setpoints import SetpointError
 
 
+SINGLE_STEPS_PER_CALLBACK = 10  # steps outside a block (idle, stopping) per timer callback:
+# idle sim time catches up with the wall clock at this pace after a late callback
+
+
 def stamp(t_ns: int) -> Time:
     return Time(sec=t_ns // NS, nanosec=t_ns % NS)
 
@@ -58,6 +62,7 @@ class BridgeNode(Node):
         # Fault injection for tests and commissioning: {"joint": "x", "offset": 0.005} (m or rad).
         self.create_subscription(String, topics.INJECT_FAULT, self.on_inject, qos.INJECT_FAULT)
         self.create_subscription(String, topics.ALARM_RESET, self.on_reset, qos.ALARM_RESET)
+        self.create_subscription(Time, topics.RECORDED_UNTIL, self.on_recorded, qos.RECORDED_UNTIL)
         self.reported_alarm = ""
         self.t_ns = 0 if self.simulation else self.get_clock().now().nanoseconds // self.period_ns * self.period_ns
         self.steps = 0
@@ -79,6 +84,9 @@ class BridgeNode(Node):
             self.get_logger().error(self.rejected)
             self.publish_diagnostics()
 
+    def on_recorded(self, msg: Time) -> None:
+        self.lockstep.recorded(msg.sec * NS + msg.nanosec, time.monotonic())
+
     def on_inject(self, msg: String) -> None:
         try:
             fault = json.loads(msg.data)
@@ -94,9 +102,11 @@ class BridgeNode(Node):
     def run(self) -> None:
         """Step the servo loop as far as time (sim: setpoints; real time: the wall) allows."""
         if self.simulation:
-            budget = self.max_steps
-            while budget > 0 and self.lockstep.may_step(self.loop, self.t_ns, time.monotonic()):
-                budget -= self._steps(budget)
+            budget, singles = self.max_steps, SINGLE_STEPS_PER_CALLBACK
+            while budget > 0 and singles > 0 and self.lockstep.may_step(self.loop, self.t_ns, time.monotonic()):
+                taken = self._steps(budget)
+                budget -= taken
+                singles -= taken == 1
         else:
             now = self.get_clock().now().nanoseconds
             while self.t_ns + self.period_ns <= now:

@@ -14,7 +14,7 @@ from ruckig import Trajectory
 
 from cnc_msgs_py.machine import Machine
 
-from .drive import DriveModel
+from .drive import DriveModel, warm_up
 from .setpoints import REST_VELOCITY, SetpointBuffer, SetpointError
 from .stop import velocity_trajectory
 
@@ -31,6 +31,7 @@ class Feedback:
 
 class ServoLoop:
     def __init__(self, machine: Machine, servo_period_ns: int, start_position: np.ndarray | None = None):
+        warm_up()  # the drive kernel, now: loading it at the first block would stall a real-time loop
         self.machine = machine
         self.joints = machine.joint_names
         self.period_ns = servo_period_ns

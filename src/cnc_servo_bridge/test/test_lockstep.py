@@ -31,11 +31,11 @@ def move(start: list[float], target: list[float]) -> tuple[np.ndarray, np.ndarra
     return p, v, a
 
 
-def loaded_loop(points: slice = slice(None)) -> tuple[ServoLoop, int]:
-    """A loop at rest at t=0 with (part of) a 20 mm X move buffered from 10 ms on."""
-    p, v, a = move([0.0] * 4, [0.02, 0.0, 0.0, 0.0])
+def loaded_loop(points: slice = slice(None), start_x: float = 0.0, target_x: float = 0.02) -> tuple[ServoLoop, int]:
+    """A loop at rest at t=0 with (part of) an X move (20 mm unless told) buffered from 10 ms on."""
+    p, v, a = move([start_x, 0.0, 0.0, 0.0], [target_x, 0.0, 0.0, 0.0])
     p, v, a = p[points], v[points], a[points]
-    loop = ServoLoop(MILL, MS)
+    loop = ServoLoop(MILL, MS, p[0])
     times = 10 * MS + np.arange(len(p)) * MS
     loop.accept(JOINTS, times, p, v, a, 0)
     return loop, int(times[-1])
@@ -99,12 +99,8 @@ def test_idle_sim_time_follows_the_wall_clock():
 
 
 def long_move_loop() -> tuple[ServoLoop, int]:
-    """A loop at rest at t=0 with a 0.9 m X move (about 1.3 s) buffered from 10 ms on."""
-    p, v, a = move([-0.45, 0.0, 0.0, 0.0], [0.45, 0.0, 0.0, 0.0])
-    loop = ServoLoop(MILL, MS, p[0])
-    times = 10 * MS + np.arange(len(p)) * MS
-    loop.accept(JOINTS, times, p, v, a, 0)
-    return loop, int(times[-1])
+    """A 0.9 m X move (about 1.3 s): longer than the recorder's window."""
+    return loaded_loop(start_x=-0.45, target_x=0.45)
 
 
 def test_the_clock_waits_for_a_slow_recorder_and_runs_on_as_it_catches_up():

@@ -51,7 +51,7 @@ soak: setup
 	$(PY) bench/soak.py
 
 # The real-time tests 50 times in a row beside two busy processes and the rest of the
-# suite: not part of `make test`; about an hour on 2 CPUs.
+# suite: not part of `make test`; one run takes 20-35 s on 2 CPUs, so about 20-30 minutes.
 stress: setup
 	$(PY) bench/stress_real_time.py --runs 50
 

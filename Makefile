@@ -9,7 +9,7 @@ STAMP   := $(VENV)/.installed
 DEMO_JOB ?= config/jobs/drill_row.yaml
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 
-.PHONY: setup browser demo cell-demo test bench bench-peer soak clean
+.PHONY: setup browser demo cell-demo test bench bench-peer soak stress clean
 
 # The virtual environment with everything from PyPI: all that the demos and benchmarks need.
 setup: $(STAMP)
@@ -50,6 +50,11 @@ bench-peer: setup
 # recordings: not part of `make bench`; about 40 minutes on 2 CPUs.
 soak: setup
 	$(PY) bench/soak.py
+
+# The real-time tests 50 times in a row beside two busy processes and the rest of the
+# suite: not part of `make test`; one run takes 20-35 s on 2 CPUs, so about 20-30 minutes.
+stress: setup
+	$(PY) bench/stress_real_time.py --runs 50
 
 clean:
 	rm -rf $(VENV) runs build install log

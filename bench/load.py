@@ -30,7 +30,8 @@ from cnc_msgs_py.job import job_id_of, load_job_file, parse_job  # noqa: E402
 from cnc_msgs_py.machine import load_machine  # noqa: E402
 from cnc_planner.jobs import plan_job  # noqa: E402
 from cnc_planner.segments import SEGMENT_HOLES, plan_segments  # noqa: E402
-from publish import write_result  # noqa: E402
+from cnc_servo_bridge.drive import warm_up  # noqa: E402
+from publish import RESULTS, write_result  # noqa: E402
 
 JOBS = ROOT / "config" / "jobs"
 SEGMENTED_HOLES = 2000  # a long drill job planned as the node plans it: segment by segment
@@ -52,11 +53,16 @@ def move_doc(moves: int) -> dict:
     return doc
 
 
-def plan(doc: dict):
+def plan(doc: dict, period: float | None = 0.001):
+    """plan_job and sampling every setpoint (unless period is None), as cnc-plan does
+    (after the drive kernel is loaded, as the planner node loads it at its start)."""
     machine = load_machine(doc["machine"])
     job = parse_job(doc)
+    warm_up()
     start = time.perf_counter()
     result = plan_job(job, machine)
+    if period is not None:
+        result.sample(np.arange(int(np.ceil(result.duration / period)) + 1) * period)
     return result, time.perf_counter() - start
 
 
@@ -72,10 +78,14 @@ def plan_in_segments(doc: dict) -> tuple[float, float, float]:
 
 
 def planning_rows() -> tuple[list[tuple], list[str]]:
+    from soak import plate_doc  # soak imports this module
+
     notes = []
-    cases = [("move_mill3.yaml", load_job_file(JOBS / "move_mill3.yaml")),
+    cases = [*((name, load_job_file(JOBS / name)) for name in
+               ("move_mill3.yaml", "path_mill3.yaml", "lathe_feed_vibration.yaml")),
              ("move 1000 feeds", move_doc(1000)),
-             ("drill 100 holes", drill_doc(100)), ("drill 1000 holes", drill_doc(1000))]
+             ("drill 100 holes", drill_doc(100)), ("drill 1000 holes", drill_doc(1000)),
+             ("plate 10000 holes", plate_doc(100))]
     rows = []
     for name, doc in cases:
         p, wall = plan(doc)
@@ -103,13 +113,13 @@ def vm_hwm_kib(pid: int, field: str = "VmHWM") -> int:
     return 0
 
 
-def simulate(job_file: str, out: Path) -> dict:
+def simulate(job_file: str, out: Path, doc: dict | None = None) -> dict:
     """One job over topics, as cnc-run: sim speed, node peak RSS, chunks lost, chunk lead."""
     from cnc_planner.runner import Session, local_dds_env
     from cnc_servo_bridge.analysis import chunks_lost
     from cnc_servo_bridge.recording import read_run
 
-    doc = load_job_file(JOBS / job_file)
+    doc = doc or load_job_file(JOBS / job_file)
     job_id = job_id_of(doc)
     peak = {"planner": 0, "bridge": 0}
     procs: dict = {}
@@ -156,7 +166,7 @@ def memory_rows() -> list[tuple]:
     for name, doc in [*((f"move {n} feeds", move_doc(n)) for n in (10, 100, 1000)),
                       *((f"drill {n} holes", drill_doc(n)) for n in (10, 30, 100))]:
         tracemalloc.start()
-        p, _ = plan(doc)
+        p, _ = plan(doc, period=None)  # the plan itself, not an array of every setpoint
         _, peak = tracemalloc.get_traced_memory()
         tracemalloc.stop()
         rows.append((name, p.duration, peak / 2**20))
@@ -178,6 +188,7 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         for i, job in enumerate(("drill_row.yaml", "lathe_feed_vibration.yaml")):
             sims.append(simulate(job, Path(tmp) / str(i)))
+        sims.append(simulate("plate 300 holes", Path(tmp) / "plate", drill_doc(300)))
     print("(d) memory", flush=True)
     mem_rows = memory_rows()
 
@@ -198,6 +209,10 @@ def main() -> int:
               f"{'job':<22}{'plan s':>10}{'peak MiB':>10}", "-" * 42]
     lines += [f"{n:<22}{d:>10.2f}{m:>10.1f}" for n, d, m in mem_rows]
     lines += ["", NOTES.format(cpus=os.cpu_count())]
+    before = RESULTS / "load_before_issue18.txt"
+    if before.exists():  # the figures before the speed work (issue 18), side by side
+        lines += ["", "=" * 99, f"Before issue 18 (kept from {before.name}, measured the same way):", "",
+                  before.read_text().rstrip()]
     text = "\n".join(lines)
     print(text)
     write_result("load.txt", text)
@@ -206,7 +221,9 @@ def main() -> int:
 
 NOTES = """\
 Notes ({cpus} CPUs, shared with other work; wall times vary with the load).
-x real time: planned machine time / wall time to plan (or, in (b), to run).
+x real time: planned machine time / wall time to plan and sample every 1 ms setpoint (as
+  cnc-plan does, without interpreter start; the drive kernel loaded first, as the planner
+  node loads it at start), or, in (b), to run.
 (b) machine s: the bridge's sim time from submitting the job to its final status,
   including the planner's start delay; wall s the same span on the wall clock. The bridge
   steps in lockstep with the setpoint stream, so this is the whole loop's speed (planner,

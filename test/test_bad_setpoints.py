@@ -34,7 +34,9 @@ MACHINE = load_machine("mill3")
 JOINTS = list(MACHINE.joint_names)  # x, y, z, spindle
 N = 50  # points per chunk, 1 ms apart
 PERIOD = 1_000_000
-LEAD_NS = 300_000_000  # chunks start this far ahead of the latest feedback
+LEAD_NS = 1_000_000_000  # chunks start this far ahead of the latest feedback the probe has read:
+# ample, because under load the probe reads the 1 kHz feedback late while the idle bridge
+# keeps pace with the wall clock (a chunk starting in the past is refused for that first)
 
 
 def _chunk(start_ns: int, names=None, p=None, v=None, a=None, offsets=None, home=None) -> JointTrajectory:

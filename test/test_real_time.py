@@ -29,28 +29,36 @@ def test_a_job_runs_in_real_time_mode(tmp_path):
 
 
 def test_planning_the_next_job_does_not_starve_the_running_one(tmp_path):
-    """A goal that takes seconds to plan (a 50-hole plate) arrives while a job runs in real
-    time with 0.3 s of setpoints buffered: it is planned beside the stream, not in its way."""
+    """Goals that take longer to plan than the buffered setpoints last (0.3 s; four 50-hole
+    plates of different depths, each about 0.1 s when the CPU is free, and not
+    sharing the retract search's cache) arrive while a job runs in real time: they are
+    planned beside the stream, not in its way."""
     running = {"schema": "cnc_job/1", "job_id": "rt-run", "kind": "move", "machine": "mill3",
                "move": [{"rapid": {"x": 20.0}}, {"linear": {"x": 0.0}, "feed": 150}]}
-    plate = {"schema": "cnc_job/1", "job_id": "rt-plate", "kind": "drill", "machine": "mill3", "spindle_rpm": 3000,
-             "drill": {"holes": [[5.0 * (i % 10), 5.0 * (i // 10)] for i in range(50)],
-                       "surface_z": 0.0, "depth": 5.0, "r_gap": 2.0, "feed": 1200}}
+    plates = [{"schema": "cnc_job/1", "job_id": f"rt-plate-{k}", "kind": "drill", "machine": "mill3",
+               "spindle_rpm": 3000,
+               "drill": {"holes": [[5.0 * (i % 10) + k, 5.0 * (i // 10)] for i in range(50)],
+                         "surface_z": 0.0, "depth": 5.0 + k, "r_gap": 2.0, "feed": 1200}} for k in range(4)]
+    ids = [p["job_id"] for p in plates]
     with Session("mill3", tmp_path / "bag", simulation=False) as session:
         session.submit(json.dumps(running))
         session.spin_until(lambda: any(s["job_id"] == "rt-run" and s["state"] == "running"
                                        for s in session.recorder.statuses), 30, "the first job did not start")
         started = time.monotonic()
-        session.submit(json.dumps(plate))
-        session.spin_until(lambda: any(s["job_id"] == "rt-plate" for s in session.recorder.statuses), 60,
-                           "the plate was not answered")
+        for plate in plates:
+            session.submit(json.dumps(plate))
+        session.spin_until(lambda: {s["job_id"] for s in session.recorder.statuses} >= set(ids), 60,
+                           "the plates were not answered")
         planning = time.monotonic() - started
-        session.cancel("rt-plate")  # only its planning matters here
+        for job_id in ids:
+            session.cancel(job_id)  # only their planning matters here
         final = session.wait("rt-run", 60)
-        session.wait("rt-plate", 60)
+        for job_id in ids:
+            session.wait(job_id, 60)
     order = [(s["job_id"], s["state"]) for s in session.recorder.statuses]
-    # the plate was planned and canceled while the first job ran
-    assert order.index(("rt-plate", "accepted")) < order.index(("rt-plate", "canceled")) < order.index(("rt-run", "succeeded"))
+    # the plates were planned and canceled while the first job ran
+    for job_id in ids:
+        assert order.index((job_id, "accepted")) < order.index((job_id, "canceled")) < order.index(("rt-run", "succeeded"))
     assert planning > 0.3  # longer than the buffered setpoints last: planning inline would starve the stream
     assert final["state"] == "succeeded", final.get("reason")
     run = read_run(tmp_path / "bag")

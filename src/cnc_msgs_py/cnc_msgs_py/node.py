@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import sys
+import traceback
 from typing import Callable
 
 import rclpy
@@ -24,10 +25,29 @@ def run_node(make: Callable[[], Node], name: str, args: list[str] | None = None)
         rclpy.try_shutdown()
         return 2
     try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        spin(node)
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+def spin(node: Node) -> None:
+    """Spin until Ctrl-C or shutdown, surviving whatever a callback or the executor raises.
+
+    An error mid-run (a bug in a callback, or rclpy's own "Unable to convert call argument
+    '0' to Python object" from take_message under load) is logged with its traceback and
+    the node spins on: its timers keep the drives under control. The same error while the
+    context shuts down (where rclpy raises it under load, ros/joint_state_publisher#117)
+    ends the spin quietly.
+    """
+    while True:
+        try:
+            rclpy.spin(node)
+            return
+        except (KeyboardInterrupt, ExternalShutdownException):
+            return
+        except Exception:  # noqa: BLE001 - survive anything, see above
+            if not node.context.ok():
+                return
+            node.get_logger().error(f"kept running after an error in a callback:\n{traceback.format_exc()}")

@@ -31,3 +31,4 @@ DIAGNOSTICS = _reliable(10)
 INJECT_FAULT = _reliable(10)
 ALARM_RESET = _reliable(10)
 CLOCK = _reliable(topics.FEEDBACK_DEPTH)
+RECORDED_UNTIL = _reliable(1)  # only the newest matters, and it must not be lost

@@ -14,6 +14,8 @@ CLOCK = "/clock"
 BRIDGE_NODE = "cnc_servo_bridge"  # its lifecycle services: <namespace>/cnc_servo_bridge/change_state, get_state
 DRIVES_KEY = "drives"  # in the bridge's diagnostics: DRIVES_ON (lifecycle active) or DRIVES_OFF
 DRIVES_ON, DRIVES_OFF = "enabled", "disabled"
+RECORDED_UNTIL = "recorded_until"  # recorder -> simulated bridge: stamp of the last joint_states
+# it has written (builtin_interfaces/Time), so the bridge's clock waits for a slow recorder
 
 # Depths: a chunk is ~0.1 s of setpoints; keep a few seconds of them queued.
 TRAJECTORY_DEPTH = 100

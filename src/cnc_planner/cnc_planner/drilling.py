@@ -53,6 +53,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from functools import lru_cache
 from typing import Callable
 
 import numpy as np
@@ -191,6 +192,23 @@ class _Retract:
     move: RuckigMove
     t_r: float
     state: tuple[float, float, float]
+
+
+# The retract search asks every hole the same questions (the same speeds, the same arcs
+# from the same states): each is answered by ruckig once.
+@lru_cache(maxsize=4096)
+def _slow_exit(z: Limits, bottom_z: float, r_z: float, speed: float) -> _Retract | None:
+    move = _z_move(z, bottom_z, 0.0, 0.0, r_z, speed)
+    extrema = move.trajectory.position_extrema[0]
+    if extrema.min < bottom_z - 1e-9 or extrema.max > r_z + 1e-9:
+        return None
+    return _Retract(3, move, move.duration, (r_z, speed, 0.0))
+
+
+@lru_cache(maxsize=4096)
+def _arc_time(z: Limits, state: tuple[float, float, float], r_z: float, feed: float) -> float:
+    """Duration of the fastest air arc from ``state`` to R at cutting feed (Job.arc)."""
+    return _z_move(z, *state, r_z, -feed, 0.0).duration
 
 
 @dataclass(frozen=True)
@@ -389,16 +407,11 @@ class _Job:
 
     def _slow_exit(self, speed: float, bottom: float) -> _Retract | None:
         """Mode 3: reach R at ``speed`` with zero acceleration, or None if that needs an overshoot."""
-        c = self.cycle
-        move = _z_move(self.z, bottom, 0.0, 0.0, c.r_z, speed)
-        extrema = move.trajectory.position_extrema[0]
-        if extrema.min < bottom - 1e-9 or extrema.max > c.r_z + 1e-9:
-            return None
-        return _Retract(3, move, move.duration, (c.r_z, speed, 0.0))
+        return _slow_exit(self.z, bottom, self.cycle.r_z, float(speed))
 
     def cost(self, retract: _Retract, air_needed: float) -> float:
         """Time from the bottom to R at feed over the next hole: retract plus air arc."""
-        return retract.t_r + max(self.arc(retract.state).duration, air_needed)
+        return retract.t_r + max(_arc_time(self.z, retract.state, self.cycle.r_z, self.cycle.feed), air_needed)
 
     def _best_slow_exit(self, air_needed: float, bottom: float) -> _Retract:
         top = self.fast_exit(bottom).state[1]
@@ -528,6 +541,7 @@ class _XYCommand:
         self.period = period
         self.entries: list[tuple[float, _XYMove, float]] = []  # (move start, move, correction start)
         self._cache: tuple[tuple, dict] | None = None
+        self._reach: np.ndarray | None = None
 
     def add(self, t_s1: float, xy: _XYMove) -> None:
         lead = XY_COMMAND_LEAD * self.period if xy.correction is not None else 0.0
@@ -542,32 +556,63 @@ class _XYCommand:
         return max(max(t + xy.duration, c + (_length(xy) - 1) * self.period) for t, xy, c in self.entries)
 
     def sample(self, ts: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """Commands at sorted instants ts. Only the entries that reach into [ts[0], ts[-1]]
+        are evaluated, each on its own index range, so a chunk costs the same at any hole.
+
+        A move sets its axes from its start on (its samples, then its target held), so
+        a later move of an axis overrides everything an earlier one did from the later
+        one's start: each entry writes and corrects only up to there.
+        """
         key = (len(ts), float(ts[0]), float(ts[-1])) if len(ts) else (0, 0.0, 0.0)
         if self._cache is not None and self._cache[0] == key:
             return self._cache[1]
-        out = {j: [np.full_like(ts, self.start[j]), np.zeros_like(ts), np.zeros_like(ts)] for j in XY}
-        for t_s1, xy, c0 in self.entries:
-            if len(ts) == 0:
+        first = self._first_entry(ts[0]) if len(ts) else len(self.entries)
+        held = dict(self.start)
+        for _, xy, _ in self.entries[:first]:
+            held.update({j: xy.target[j] for j in xy.joints})
+        out = {j: [np.full_like(ts, held[j]), np.zeros_like(ts), np.zeros_like(ts)] for j in XY}
+        window = []
+        for t_s1, xy, c0 in self.entries[first:]:
+            if len(ts) == 0 or min(t_s1, c0) > ts[-1]:
                 break
-            p_end = [xy.target[j] for j in xy.joints]
-            after = ts >= t_s1 + xy.duration
+            window.append((xy, c0, t_s1, *np.searchsorted(ts, [t_s1, t_s1 + xy.duration], side="left")))
+        overridden = {j: len(ts) for j in XY}  # where the next move of each axis starts
+        until = []
+        for xy, _, _, lo, _ in reversed(window):
+            until.append({j: overridden[j] for j in xy.joints})
+            overridden.update({j: lo for j in xy.joints})
+        until.reverse()
+        for (xy, _, t_s1, lo, hi), stop in zip(window, until):
+            pva = xy.move.sample_all(ts[lo:hi] - t_s1) if hi > lo else None
             for dof, j in enumerate(xy.joints):
-                out[j][0][after] = p_end[dof]
-            inside = (ts >= t_s1) & ~after
-            if inside.any():
-                pva = xy.move.sample_all(ts[inside] - t_s1)
-                for dof, j in enumerate(xy.joints):
-                    for q in range(3):
-                        out[j][q][inside] = pva[q][:, dof]
-            k = _length(xy)
-            span = (ts >= c0) & (ts <= c0 + (k - 1) * self.period)
-            if xy.correction is not None and span.any():
-                grid = np.arange(k) * self.period
-                for dof, j in enumerate(xy.joints):
-                    for q in range(3):
-                        out[j][q][span] += np.interp(ts[span] - c0, grid, xy.correction[q, :, dof])
+                out[j][0][hi:stop[j]] = xy.target[j]
+                end = min(hi, stop[j])
+                for q in range(3):
+                    if pva is not None and end > lo:
+                        out[j][q][lo:end] = pva[q][: end - lo, dof]
+        for (xy, c0, _, _, _), stop in zip(window, until):
+            if xy.correction is None:  # a move planned without one (_xy_headroom)
+                continue
+            k = xy.correction.shape[1]
+            lo = np.searchsorted(ts, c0, side="left")
+            hi = np.searchsorted(ts, c0 + (k - 1) * self.period, side="right")
+            grid = np.arange(k) * self.period
+            for dof, j in enumerate(xy.joints):
+                end = min(hi, stop[j])
+                for q in range(3):
+                    if end > lo:
+                        out[j][q][lo:end] += np.interp(ts[lo:end] - c0, grid, xy.correction[q, :, dof])
         self._cache = (key, out)
         return out
+
+    def _first_entry(self, t: float) -> int:
+        """Index of the first entry whose move or correction may still act at time t."""
+        if self._reach is None or len(self._reach) != len(self.entries):
+            # Latest instant each entry or an earlier one acts on (a running maximum).
+            ends = [max(t_s1 + xy.duration, c + (_length(xy) - 1) * self.period)
+                    for t_s1, xy, c in self.entries]
+            self._reach = np.maximum.accumulate(ends) if ends else np.zeros(0)
+        return int(np.searchsorted(self._reach, t, side="left"))
 
     def write(self, builder: PlanBuilder) -> None:
         """Add the commands to the builder: one piece per X/Y axis over the whole cycle."""
@@ -594,8 +639,7 @@ def _add_z(builder: PlanBuilder, start: float, move: RuckigMove, duration: float
 
 def _air_energy(move: RuckigMove) -> float:
     """Integral of a_z^2 dt over an air move: the heat/power proxy of the gentle variant."""
-    ts = np.arange(0.0, move.duration, FINE_STEP)
-    a = np.array([move.trajectory.at_time(float(t))[2][0] for t in ts])
+    a = move.sample_all(np.arange(0.0, move.duration, FINE_STEP))[2][:, 0]
     return float(np.sum(a * a) * FINE_STEP)
 
 
@@ -710,9 +754,8 @@ def _lag_margins(job: _Job, plan: Plan, infos: list[dict], t0: float) -> tuple[n
     period = c.servo_period
     k0 = math.floor(t0 / period + 1e-9)
     ts = (k0 + np.arange(math.ceil((plan.duration - t0) / period) + 50)) * period
-    p, v, a = plan.sample(ts)
-    cols = [plan.joints.index(j) for j in ("x", "y", "z")]
-    feedback, _ = DriveModel(job.machine, period, ("x", "y", "z")).simulate(p[:, cols], v[:, cols], a[:, cols])
+    p, v, a = plan.sample(ts, ("x", "y", "z"))
+    feedback, _ = DriveModel(job.machine, period, ("x", "y", "z")).simulate(p, v, a)
     below = feedback[:, 2] < c.r_z
     starts = np.searchsorted(ts, [info["s1"] for info in infos] + [ts[-1] + 1.0, ts[-1] + 1.0])
     down = np.zeros(job.n)
@@ -836,7 +879,14 @@ def plan_drilling(builder: PlanBuilder, cycle: DrillCycle) -> list[dict]:
 
     def retracts(e_down: np.ndarray, e_up: np.ndarray) -> list[_Retract]:
         air_needed = e_up + xy_time + e_down
-        return [job.retract(air_needed[i + 1], i) for i in range(job.n - 1)] + [job.fast_exit(last_bottom)]
+        laws: dict[tuple[float, float], _Retract] = {}  # holes of one pitch and depth need the same law
+        out = []
+        for i in range(job.n - 1):
+            key = (float(air_needed[i + 1]), job.turning_point(i))
+            if key not in laws:
+                laws[key] = job.retract(key[0], i)
+            out.append(laws[key])
+        return out + [job.fast_exit(last_bottom)]
 
     # One round at the command floors measures the lag margins; with them the retract
     # laws are chosen once more, then the gaps settle.

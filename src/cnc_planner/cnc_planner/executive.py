@@ -18,6 +18,7 @@ from cnc_msgs_py.machine import Machine
 from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.status import Status
 from cnc_msgs_py.units import NS
+from cnc_servo_bridge.drive import warm_up
 
 from .lookahead import JobPlan
 from .segments import plan_segments, segment_count
@@ -38,6 +39,8 @@ class Settings:
     start_delay_ns: int = 400_000_000  # from the feedback that starts a job to its first setpoint:
     # the idle bridge's time runs on meanwhile, so this must cover a tick slowed by a loaded CPU
     status_period_ns: int = 500_000_000  # progress updates on job_status
+    min_lead_ns: int = 100_000_000  # a job's first chunk reaching the bridge's clock with less
+    # lead than this (a start delayed by planning, a loaded CPU or DDS) is re-timed, not sent stale
 
 
 @dataclass
@@ -64,6 +67,7 @@ class _Job:
 
 class Executive:
     def __init__(self, machine: Machine, settings: Settings | None = None):
+        warm_up()  # the drive model's kernel, before the first goal is planned against it
         self.machine = machine
         self.settings = settings or Settings()
         self.queue: deque[_Job] = deque()
@@ -196,6 +200,25 @@ class Executive:
                                        cycle_time_s=(stream.end_ns - stream.start_ns) / NS))
             self.active = None
         return out
+
+    def retime(self, out: Output, bridge_now_ns: int) -> None:
+        """Just before ``out`` is published, with the bridge's clock as it stands now: if it
+        holds the running job's first chunk and that would arrive with less than min_lead,
+        the job starts later instead (chunks and events shifted on the grid, start_delay
+        after now). Later chunks continue a stream the bridge has, so they are never moved."""
+        job = self.active
+        if job is None or job.stream is None or not out.chunks or out.chunks[0].stamp_ns != job.stream.start_ns:
+            return
+        if out.chunks[0].stamp_ns - bridge_now_ns >= self.settings.min_lead_ns:
+            return
+        period = self.settings.period_ns
+        shift = -(-(bridge_now_ns + self.settings.start_delay_ns) // period) * period - job.stream.start_ns
+        job.stream.start_ns += shift
+        for chunk in out.chunks:
+            chunk.stamp_ns += shift
+        for event in out.events:
+            if event["job_id"] == job.job_id:
+                event["stamp_ns"] += shift
 
     def _start(self, now_ns: int, out: Output) -> None:
         """Start the next job on the grid, from where the axes really stand.

@@ -13,6 +13,7 @@ import numpy as np
 from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
 from cnc_msgs_py.machine import Axis
+from cnc_servo_bridge.jerk_profile import TrajectorySampler
 from cnc_servo_bridge.stop import velocity_trajectory
 
 # Avoid zero-length divisions and ruckig's numerical floor on tiny moves.
@@ -39,6 +40,7 @@ class RuckigMove:
 
     def __init__(self, trajectory: Trajectory) -> None:
         self.trajectory = trajectory
+        self._sampler: TrajectorySampler | None = None  # built on first use: most searched moves are never sampled
         self._cache: tuple[tuple[int, float, float], np.ndarray] | None = None
 
     @property
@@ -51,7 +53,9 @@ class RuckigMove:
         key = (len(t), float(t[0]), float(t[-1])) if len(t) else (0, 0.0, 0.0)
         if self._cache is not None and self._cache[0] == key:
             return self._cache[1]
-        out = np.array([self.trajectory.at_time(float(ti)) for ti in t]).transpose(1, 0, 2)
+        if self._sampler is None:
+            self._sampler = TrajectorySampler(self.trajectory)
+        out = self._sampler.sample(t)
         self._cache = (key, out)
         return out
 

@@ -101,6 +101,9 @@ class PlannerNode(Node):
         return self.latest_feedback_ns
 
     def publish(self, out: Output) -> None:
+        # The bridge's clock now, not at the feedback this output was made for (real time:
+        # the wall; simulation: /clock, both the node's clock), so a late start is re-timed.
+        self.executive.retime(out, max(self.latest_feedback_ns, self.get_clock().now().nanoseconds))
         for chunk in out.chunks:
             self.trajectory_pub.publish(chunk_to_msg(chunk))
         for event in out.events:

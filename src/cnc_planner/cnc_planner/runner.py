@@ -22,10 +22,12 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
+from builtin_interfaces.msg import Time
 from std_msgs.msg import String
 
 from cnc_msgs_py import qos, topics
 from cnc_msgs_py.status import FINAL_STATES
+from cnc_msgs_py.units import NS
 from cnc_servo_bridge.recording import RECORDED, BagWriter
 
 QOS = {
@@ -34,6 +36,7 @@ QOS = {
     "joint_states": qos.JOINT_STATES, "/diagnostics": qos.DIAGNOSTICS, "/clock": qos.CLOCK,
 }
 SETTLE_S = 0.2  # sim time recorded after the final status, so the drives' settling shows
+ACK_EVERY_NS = 10_000_000  # tell the bridge what has been written every 10 ms of its time
 
 
 class RunError(RuntimeError):
@@ -98,6 +101,9 @@ class Recorder(Node):
         self.feedback_ns = 0  # stamp of the last joint_states recorded
         self.planner_heartbeats = 0  # planner diagnostics received (it is up and talking)
         self.goal_pub = self.create_publisher(String, topics.JOB_GOAL, qos.JOB_GOAL)
+        # Backpressure: a simulated bridge does not run more than a bounded window ahead of this.
+        self.ack_pub = self.create_publisher(Time, topics.RECORDED_UNTIL, qos.RECORDED_UNTIL)
+        self.acked_ns = 0
         for topic, msgtype in RECORDED.items():
             name = topic_name(topic, namespace)
             self.create_subscription(message_class(msgtype), name, self._writer(name, topic), QOS[topic], raw=True)
@@ -110,6 +116,10 @@ class Recorder(Node):
                 self.feedback_ns = _header_stamp_ns(data)
             # Bag time: the machine's time (sim time, or the wall clock in real-time mode).
             self.bag.write(name, max(self.sim_ns, self.feedback_ns), data)
+            # (not only forwards: a restarted bridge starts its clock again)
+            if topic == "joint_states" and not 0 <= self.feedback_ns - self.acked_ns < ACK_EVERY_NS:
+                self.acked_ns = self.feedback_ns
+                self.ack_pub.publish(Time(sec=self.feedback_ns // NS, nanosec=self.feedback_ns % NS))
             if topic == "job_status":
                 status = json.loads(deserialize_message(data, String).data)
                 self.statuses.append(status)

@@ -45,6 +45,7 @@ class JointTimeline:
         self.pieces: list[Piece] = []
         self._starts: list[float] = []
         self._coast: list[tuple[float, float, float]] = [(0.0, position, velocity)]  # (t, p, v)
+        self._coast_array: np.ndarray | None = None
 
     @property
     def end_time(self) -> float:
@@ -89,15 +90,18 @@ class JointTimeline:
         v = np.empty_like(ts)
         a = np.zeros_like(ts)
         # Coasting everywhere first (piece i's coast state applies after piece i-1 ends).
-        coast_index = np.searchsorted([c[0] for c in self._coast], ts, side="right") - 1
-        coast = np.asarray(self._coast)[np.maximum(coast_index, 0)]
+        if self._coast_array is None or len(self._coast_array) != len(self._coast):
+            self._coast_array = np.asarray(self._coast)  # (t, p, v) rows, built once per change
+        coast_index = np.searchsorted(self._coast_array[:, 0], ts, side="right") - 1
+        coast = self._coast_array[np.maximum(coast_index, 0)]
         v[:] = coast[:, 2]
         p[:] = coast[:, 1] + coast[:, 2] * (ts - coast[:, 0])
         first = max(bisect.bisect_right(self._starts, ts[0]) - 1, 0)
-        for piece in self.pieces[first:]:
-            if piece.start > ts[-1]:
-                break
-            lo, hi = np.searchsorted(ts, [piece.start, piece.end], side="left")
+        last = bisect.bisect_right(self._starts, ts[-1])
+        pieces = self.pieces[first:last]
+        # Every piece's index range in one call; only pieces that hold instants are sampled.
+        bounds = np.searchsorted(ts, [(piece.start, piece.end) for piece in pieces], side="left")
+        for piece, (lo, hi) in zip(pieces, bounds):
             if hi > lo:
                 p[lo:hi], v[lo:hi], a[lo:hi] = piece.sample(ts[lo:hi] - piece.start)
         return p, v, a
@@ -115,10 +119,15 @@ class Plan:
     def duration(self) -> float:
         return max(tl.end_time for tl in self.timelines.values())
 
-    def sample(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Setpoints at sorted plan times ts: three arrays of shape (len(ts), joints)."""
-        out = [self.timelines[j].sample(ts) for j in self.joints]
-        return tuple(np.stack([o[k] for o in out], axis=1) for k in range(3))  # type: ignore[return-value]
+    def sample(self, ts: np.ndarray, joints: tuple[str, ...] | None = None
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Setpoints at sorted plan times ts: three arrays of shape (len(ts), joints), of
+        every joint or of ``joints`` only, in that order."""
+        joints = self.joints if joints is None else joints
+        out = np.empty((3, len(ts), len(joints)))
+        for i, j in enumerate(joints):
+            out[0, :, i], out[1, :, i], out[2, :, i] = self.timelines[j].sample(ts)
+        return out[0], out[1], out[2]
 
     def start_position(self) -> dict[str, float]:
         return {j: self.timelines[j].start_position for j in self.joints}

@@ -543,3 +543,49 @@ def test_a_job_whose_later_segment_cannot_be_planned_ends_aborted_at_rest(monkey
     last = sim.chunks[-1][1]
     assert np.all(last.velocities[-1] == 0.0) and np.all(last.accelerations[-1] == 0.0)
     assert [e["hole"] for e in sim.events if e["name"] == "S1"] == list(range(SEGMENT_HOLES))
+
+
+def first_chunks(sim: Sim):
+    """Tick (feedback at rest) until the executive hands out the job's first chunks."""
+    sim.ex.feedback(dict(zip(MILL.joint_names, sim.position.tolist())))
+    while not (out := sim.ex.tick(sim.now)).chunks:
+        sim.now += STEP_NS
+    return out
+
+
+def test_a_first_chunk_made_late_is_retimed_on_the_grid_not_sent_stale():
+    """The bridge's clock ran 1 s on between the feedback that started the job and the
+    moment its first chunk is published (a stalled planner): the job starts later instead."""
+    sim = Sim()
+    sim.submit(move_job("late", DEMO))
+    out = first_chunks(sim)
+    assert out.chunks[0].stamp_ns == sim.settings.start_delay_ns  # as planned: the delay after the start
+    bridge_now = sim.now + NS  # 1 s later the chunk would be 0.6 s in the past
+    sim.ex.retime(out, bridge_now)
+    first = out.chunks[0]
+    assert first.stamp_ns - bridge_now >= sim.settings.min_lead_ns
+    assert first.stamp_ns % sim.settings.period_ns == 0
+    assert all(b.stamp_ns == a.end_ns + a.period_ns for a, b in zip(out.chunks, out.chunks[1:]))
+    assert out.events[0]["stamp_ns"] == first.stamp_ns  # the first move's mark moved with it
+    # Published now, the rest of the job streams on from the new start, and it succeeds.
+    sim.now = bridge_now
+    for chunk in out.chunks:
+        times = chunk.stamp_ns + np.arange(len(chunk.positions)) * chunk.period_ns
+        sim.bridge.insert(sim.bridge.validate(list(chunk.joints), times, chunk.positions, chunk.velocities,
+                                              chunk.accelerations, sim.now, (sim.position, np.zeros_like(sim.position))))
+        sim.chunks.append((sim.now, chunk, "late"))
+    sim.ex.retime(out, bridge_now + 10 * MS)  # once on its way, a stream is never moved again
+    assert out.chunks[0].stamp_ns == first.stamp_ns
+    final = sim.run_job("late")
+    assert final.state == "succeeded"
+    times = stitched([c for _, c, _ in sim.chunks])[0]
+    assert np.all(np.diff(times) == sim.settings.period_ns)
+
+
+def test_a_first_chunk_with_lead_enough_is_not_moved():
+    sim = Sim()
+    sim.submit(move_job("ontime", DEMO))
+    out = first_chunks(sim)
+    stamp = out.chunks[0].stamp_ns
+    sim.ex.retime(out, stamp - sim.settings.min_lead_ns)
+    assert out.chunks[0].stamp_ns == stamp

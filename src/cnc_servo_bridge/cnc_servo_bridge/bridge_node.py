@@ -50,9 +50,9 @@ PARAMETERS = {
     "joint_state_rate": Param(1000.0, "joint_states rate (of sim time in simulation), at most "
                                       "one per servo step", "Hz", (1.0, 10000.0), at_configure=True),
     "clock_rate": Param(100.0, "/clock rate in simulation", "Hz", (1.0, 10000.0), at_configure=True),
-    "steps_per_callback": Param(10, "servo steps per timer callback in simulation: few, so that "
-                                    "setpoint chunks (a stop) are taken between batches", "steps",
-                                (1, 1000), at_configure=True),
+    "steps_per_callback": Param(100, "servo steps per timer callback in simulation, taken in blocks: "
+                                     "bounded, so that setpoint chunks (a stop) are taken between them",
+                                "steps", (1, 1000), at_configure=True),
     "start_position": Param(Parameter.Type.DOUBLE_ARRAY, "where the axes stand at configure, one value "
                                                          "per joint in the machine's order (unset: its home)",
                             "m or rad", at_configure=True),
@@ -62,6 +62,10 @@ PARAMETERS = {
 AT_CONFIGURE = {name for name, param in PARAMETERS.items() if param.at_configure}
 DEACTIVATED = "bridge deactivated: the drives stop (jerk-limited) and refuse setpoints until it is activated"
 SUCCESS, FAILURE = TransitionCallbackReturn.SUCCESS, TransitionCallbackReturn.FAILURE
+
+
+SINGLE_STEPS_PER_CALLBACK = 10  # steps outside a block (idle, stopping) per timer callback:
+# idle sim time catches up with the wall clock at this pace after a late callback
 
 
 def stamp(t_ns: int) -> Time:
@@ -98,7 +102,8 @@ class BridgeNode(LifecycleNode):
         self.simulation = value(self, "simulation")
         self.publish_every = max(1, round(NS / value(self, "joint_state_rate") / self.period_ns))
         self.clock_every = max(1, round(NS / value(self, "clock_rate") / self.period_ns))
-        # Few steps per callback so that setpoint chunks (a stop!) are taken between batches.
+        # Bounded machine time per callback (0.1 s) so that setpoint chunks (a stop!) are
+        # taken between batches; the loop steps them in blocks (ServoLoop.run).
         self.max_steps = value(self, "steps_per_callback")
         self.joints = list(machine.joint_names)
         self.state_pub = self.create_publisher(JointState, topics.JOINT_STATES, qos.JOINT_STATES)
@@ -109,6 +114,7 @@ class BridgeNode(LifecycleNode):
             # Fault injection for tests and commissioning: {"joint": "x", "offset": 0.005} (m or rad).
             self.create_subscription(String, topics.INJECT_FAULT, self.on_inject, qos.INJECT_FAULT),
             self.create_subscription(String, topics.ALARM_RESET, self.on_reset, qos.ALARM_RESET),
+            self.create_subscription(Time, topics.RECORDED_UNTIL, self.on_recorded, qos.RECORDED_UNTIL),
         ]
         self.reported_alarm = ""
         if not self.simulation:
@@ -194,6 +200,9 @@ class BridgeNode(LifecycleNode):
             self.get_logger().error(self.rejected)
             self.publish_diagnostics()
 
+    def on_recorded(self, msg: Time) -> None:
+        self.lockstep.recorded(msg.sec * NS + msg.nanosec, time.monotonic())
+
     def on_inject(self, msg: String) -> None:
         try:
             fault = json.loads(msg.data)
@@ -209,25 +218,31 @@ class BridgeNode(LifecycleNode):
     def run(self) -> None:
         """Step the servo loop as far as time (sim: setpoints; real time: the wall) allows."""
         if self.simulation:
-            for _ in range(self.max_steps):
-                if not self.lockstep.may_step(self.loop, self.t_ns, time.monotonic()):
-                    break
-                self._step()
+            budget, singles = self.max_steps, SINGLE_STEPS_PER_CALLBACK
+            while budget > 0 and singles > 0 and self.lockstep.may_step(self.loop, self.t_ns, time.monotonic()):
+                taken = self._steps(budget)
+                budget -= taken
+                singles -= taken == 1
         else:
             now = self.get_clock().now().nanoseconds
             while self.t_ns + self.period_ns <= now:
-                self._step()
+                self._steps((now - self.t_ns) // self.period_ns)
 
-    def _step(self) -> None:
-        feedback = self.loop.step(self.t_ns)
-        if self.clock_pub is not None and self.steps % self.clock_every == 0:
-            self.clock_pub.publish(Clock(clock=stamp(feedback.stamp_ns)))
-        if self.steps % self.publish_every == 0:
-            self.publish_feedback(feedback)
-        if self.steps % 100 == 0 or self.loop.alarm != self.reported_alarm:
-            self.publish_diagnostics()
-        self.steps += 1
-        self.t_ns += self.period_ns
+    def _steps(self, count: int) -> int:
+        """Take up to ``count`` servo steps (a block where the loop can) and publish every
+        sample they produced; returns how many were taken."""
+        taken = self.loop.run(self.t_ns, count)
+        for i, feedback in enumerate(taken, start=1 - len(taken)):
+            if self.clock_pub is not None and self.steps % self.clock_every == 0:
+                self.clock_pub.publish(Clock(clock=stamp(feedback.stamp_ns)))
+            if self.steps % self.publish_every == 0:
+                self.publish_feedback(feedback)
+            # An alarm can only come from a block's last step (i == 0).
+            if self.steps % 100 == 0 or (i == 0 and self.loop.alarm != self.reported_alarm):
+                self.publish_diagnostics()
+            self.steps += 1
+            self.t_ns += self.period_ns
+        return len(taken)
 
     def publish_feedback(self, feedback: Feedback) -> None:
         msg = JointState(name=self.joints, position=feedback.positions.tolist(), velocity=feedback.velocities.tolist())

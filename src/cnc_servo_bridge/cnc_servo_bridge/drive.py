@@ -114,6 +114,15 @@ class DriveModel:
         return positions, velocities
 
 
+def warm_up() -> None:
+    """Load the compiled kernel now: at a node's start, not on the first job's clock (from
+    numba's on-disk cache this takes about 0.2 s, a first compile a few seconds)."""
+    one = np.zeros((1, 1))
+    state = [np.zeros(1) for _ in range(3)]
+    _run(one, one, one, *state, *(np.ones(1) for _ in range(4)), np.ones(1), np.ones(1), np.ones(1),
+         1e-3, np.empty((3, 1, 1)))
+
+
 @numba.njit(cache=True, nogil=True)
 def _run(p_ref, v_ref, a_ref, position, velocity, measured, kp, velocity_ff, accel_gain, decay,
          v_limit, dv_limit, resolution, period, out):  # pragma: no cover (compiled)

@@ -11,8 +11,15 @@ from cnc_msgs_py.units import NS
 
 from .servo import ServoLoop
 
-IDLE_GRACE_S = 0.1  # wall time the stream may take to continue after running out at rest
-# (a job paused at rest right at a chunk's end) before idle sim time starts to run
+IDLE_GRACE_S = 0.5  # wall time the stream may take to continue after running out at rest
+# (a job paused at rest right at a chunk's end) before idle sim time starts to run; the
+# bridge drains its buffer in blocks within milliseconds, so this is the planner's time to
+# answer, which a loaded CPU stretches (0.1 s was too short under the full suite)
+RECORDER_WINDOW_NS = 100_000_000  # sim time the bridge may run ahead of what a recorder
+# has written: far inside the 20 s of joint_states history, so no sample is ever dropped,
+# and short, so a recorder's view of the machine (a test's, a cell's) stays current
+RECORDER_TIMEOUT_S = 1.0  # wall time without word from the recorder before it counts as gone
+# (a recorder that stopped reading): shorter than the planner's 2 s feedback watchdog
 
 
 class Lockstep:
@@ -22,6 +29,13 @@ class Lockstep:
         self.starved_since: float | None = None  # wall time the wait for setpoints began
         self.idle = True
         self.wall_start, self.sim_at_wall_start = wall_s, t_ns  # idle sim time runs from here
+        self.recorded_ns: int | None = None  # what a recorder has written (None: no recorder)
+        self.recorder_heard = 0.0  # wall time of its last word
+
+    def recorded(self, stamp_ns: int, wall_s: float) -> None:
+        """A recorder has written every joint_states sample up to ``stamp_ns``."""
+        self.recorded_ns = stamp_ns if self.recorded_ns is None else max(self.recorded_ns, stamp_ns)
+        self.recorder_heard = wall_s
 
     def may_step(self, loop: ServoLoop, t_ns: int, wall_s: float) -> bool:
         """May the loop take its step at ``t_ns`` now (wall time ``wall_s``)?
@@ -29,7 +43,14 @@ class Lockstep:
         While the axes move it waits only when the step at ``t_ns`` itself has no
         setpoint, so a job's last point (at rest) is stepped at once; after the underrun
         timeout it steps anyway, and the loop raises its buffer-ran-dry alarm and stops.
+        A recorder that has fallen RECORDER_WINDOW_NS behind holds the clock until it
+        catches up (backpressure), unless it has been silent for RECORDER_TIMEOUT_S.
         """
+        if self.recorded_ns is not None:
+            if wall_s - self.recorder_heard > RECORDER_TIMEOUT_S:
+                self.recorded_ns = None  # the recorder is gone: run on without it
+            elif t_ns - self.recorded_ns > RECORDER_WINDOW_NS:
+                return False
         if loop.starved(t_ns):
             if self.starved_since is None:
                 self.starved_since = wall_s

@@ -18,7 +18,7 @@ from ruckig import Trajectory
 
 from cnc_msgs_py.machine import Machine
 
-from .drive import DriveModel
+from .drive import DriveModel, warm_up
 from .setpoints import REST_VELOCITY, SetpointBuffer, SetpointError
 from .stop import velocity_trajectory
 
@@ -48,6 +48,7 @@ def _check_start(machine: Machine, start: np.ndarray) -> None:
 class ServoLoop:
     def __init__(self, machine: Machine, servo_period_ns: int, start_position: np.ndarray | None = None,
                  enabled: bool = True):
+        warm_up()  # the drive kernel, now: loading it at the first block would stall a real-time loop
         self.machine = machine
         self.joints = machine.joint_names
         self.period_ns = servo_period_ns
@@ -117,6 +118,37 @@ class ServoLoop:
         if self._stop is None:
             self._check(t_ns, error, feedback.positions)
         self.drives.step(*reference)
+        return feedback
+
+    def run(self, t_ns: int, steps: int) -> list[Feedback]:
+        """Advance up to ``steps`` servo periods from time t, as many ``step`` calls would.
+
+        Where the buffer holds the reference for several periods (one chunk, no stop
+        running) the drive model takes them in one compiled call and the following-error
+        and soft-limit checks run over the whole block; the block ends at the first step
+        that trips a check, with that step's alarm, as single stepping would end it.
+        Otherwise (a stop, a dry or empty buffer) it takes one ``step``.
+        """
+        block = None if self._stop is not None or steps < 2 else self.buffer.sample_block(t_ns, steps, self.period_ns)
+        if block is None or len(block[0]) < 2:
+            return [self.step(t_ns)]
+        p, v, a = block
+        state = self.drives.state
+        saved = (state.position.copy(), state.velocity.copy(), state.measured.copy())
+        measured, velocity, error = self.drives.run(p, v, a)
+        tripped = (np.any(np.abs(error) > self.drives.following_error_limit, axis=1)
+                   | np.any((measured < self.buffer.lo) | (measured > self.buffer.hi), axis=1))
+        n = len(p)
+        if tripped.any():
+            n = int(np.argmax(tripped)) + 1
+            if n < len(p):  # take the block again up to the step that trips
+                state.position, state.velocity, state.measured = saved
+                measured, velocity, error = self.drives.run(p[:n], v[:n], a[:n])
+        self.max_following_error = np.maximum(self.max_following_error, np.abs(error[:n]).max(axis=0))
+        self.reference = (p[n - 1].copy(), v[n - 1].copy(), a[n - 1].copy())
+        feedback = [Feedback(t_ns + i * self.period_ns, measured[i], velocity[i], error[i]) for i in range(n)]
+        if tripped[n - 1]:
+            self._check(feedback[-1].stamp_ns, error[n - 1], measured[n - 1])
         return feedback
 
     def _check(self, t_ns: int, error: np.ndarray, measured: np.ndarray) -> None:

@@ -155,6 +155,34 @@ class SetpointBuffer:
                                         last.velocities[:keep], last.accelerations[:keep])
         self.chunks.append(setpoints)
 
+    def sample_block(self, t_ns: int, count: int, period_ns: int
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """References (count', joints) at t, t + period, ...: what ``sample`` gives instant
+        by instant, for as many of ``count`` instants as the current chunk serves alone
+        (the block ends where the buffer ends or the next chunk takes over); None when t
+        lies beyond the buffer."""
+        while len(self.chunks) > 1 and self.chunks[1].times_ns[0] <= t_ns:
+            self.chunks.popleft()
+        if not self.chunks or t_ns > self.chunks[0].times_ns[-1]:
+            return None
+        chunk = self.chunks[0]
+        times = chunk.times_ns
+        end = int(times[-1]) if len(self.chunks) == 1 else min(int(times[-1]), int(self.chunks[1].times_ns[0]) - 1)
+        ts = t_ns + np.arange(min(count, (end - t_ns) // period_ns + 1), dtype=np.int64) * period_ns
+        k = np.searchsorted(times, ts, side="right") - 1
+        row = np.maximum(k, 0)
+        out = [x[row] for x in (chunk.positions, chunk.velocities, chunk.accelerations)]
+        out[1][k < 0] = 0.0  # before the first point: its position, held
+        out[2][k < 0] = 0.0
+        between = (k >= 0) & (k < len(times) - 1)
+        between[between] = times[k[between]] != ts[between]
+        if between.any():
+            kb = k[between]
+            w = ((ts[between] - times[kb]) / (times[kb + 1] - times[kb]))[:, None]
+            for q, x in enumerate((chunk.positions, chunk.velocities, chunk.accelerations)):
+                out[q][between] = x[kb] + w * (x[kb + 1] - x[kb])
+        return out[0], out[1], out[2]
+
     def sample(self, t_ns: int) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """Reference at t (linear between points); None when t lies beyond the buffer.
 

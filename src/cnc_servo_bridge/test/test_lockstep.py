@@ -5,7 +5,7 @@ import numpy as np
 from ruckig import InputParameter, Ruckig, Trajectory
 
 from cnc_msgs_py.machine import load_machine
-from cnc_servo_bridge.lockstep import IDLE_GRACE_S, Lockstep
+from cnc_servo_bridge.lockstep import IDLE_GRACE_S, RECORDER_TIMEOUT_S, RECORDER_WINDOW_NS, Lockstep
 from cnc_servo_bridge.servo import ServoLoop
 
 MILL = load_machine("mill3")
@@ -31,11 +31,11 @@ def move(start: list[float], target: list[float]) -> tuple[np.ndarray, np.ndarra
     return p, v, a
 
 
-def loaded_loop(points: slice = slice(None)) -> tuple[ServoLoop, int]:
-    """A loop at rest at t=0 with (part of) a 20 mm X move buffered from 10 ms on."""
-    p, v, a = move([0.0] * 4, [0.02, 0.0, 0.0, 0.0])
+def loaded_loop(points: slice = slice(None), start_x: float = 0.0, target_x: float = 0.02) -> tuple[ServoLoop, int]:
+    """A loop at rest at t=0 with (part of) an X move (20 mm unless told) buffered from 10 ms on."""
+    p, v, a = move([start_x, 0.0, 0.0, 0.0], [target_x, 0.0, 0.0, 0.0])
     p, v, a = p[points], v[points], a[points]
-    loop = ServoLoop(MILL, MS)
+    loop = ServoLoop(MILL, MS, p[0])
     times = 10 * MS + np.arange(len(p)) * MS
     loop.accept(JOINTS, times, p, v, a, 0)
     return loop, int(times[-1])
@@ -96,3 +96,36 @@ def test_idle_sim_time_follows_the_wall_clock():
     assert lockstep.may_step(loop, 5 * MS, 100.001)
     assert not lockstep.may_step(loop, 15 * MS, 100.005)  # 10 ms of sim after 5 ms of wall
     assert lockstep.may_step(loop, 15 * MS, 100.0115)
+
+
+def long_move_loop() -> tuple[ServoLoop, int]:
+    """A 0.9 m X move (about 1.3 s): longer than the recorder's window."""
+    return loaded_loop(start_x=-0.45, target_x=0.45)
+
+
+def test_the_clock_waits_for_a_slow_recorder_and_runs_on_as_it_catches_up():
+    loop, end_ns = long_move_loop()
+    lockstep = Lockstep(MS, TIMEOUT_S, 0, wall_s=0.0)
+    lockstep.recorded(0, wall_s=0.0)  # a recorder has written the sample at 0
+    t, wall = 0, 0.0
+    while lockstep.may_step(loop, t, wall):
+        loop.step(t)
+        t += MS
+    assert t == RECORDER_WINDOW_NS + MS < end_ns  # held one window ahead of the recorder
+    wall = 0.5 * RECORDER_TIMEOUT_S
+    assert not lockstep.may_step(loop, t, wall)  # still held: the recorder is slow, not gone
+    lockstep.recorded(100 * MS, wall)  # it caught up 100 ms
+    for _ in range(100):
+        assert lockstep.may_step(loop, t, wall)
+        loop.step(t)
+        t += MS
+    assert not lockstep.may_step(loop, t, wall)
+
+
+def test_a_recorder_that_fell_silent_no_longer_holds_the_clock():
+    loop, _ = long_move_loop()
+    lockstep = Lockstep(MS, TIMEOUT_S, 0, wall_s=0.0)
+    lockstep.recorded(0, wall_s=0.0)
+    t = RECORDER_WINDOW_NS + MS
+    assert not lockstep.may_step(loop, t, RECORDER_TIMEOUT_S)
+    assert lockstep.may_step(loop, t, RECORDER_TIMEOUT_S + 0.01)  # gone: the machine runs on

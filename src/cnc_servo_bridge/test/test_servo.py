@@ -246,3 +246,65 @@ def test_at_rest_without_a_buffer_holds_without_alarm():
 def test_a_start_position_that_does_not_fit_the_machine_is_refused(start, field):
     with pytest.raises(ValueError, match=f"start_position: {field}"):
         ServoLoop(MILL, MS, start_position=np.array(start))
+
+
+# --- stepping in blocks ------------------------------------------------------------------
+
+def twin_loops(chunk_points: int, offset_ns: int = 0, start_ns: int = 5 * MS):
+    """Two loops fed the same reference: chunks of ``chunk_points``, stamps ``offset_ns`` off
+    the servo grid (so the loop interpolates), starting after a held first point."""
+    p, v, a = ruckig_reference(target=[0.05, -0.03, 0.02, 200.0])
+    loops = [ServoLoop(MILL, MS), ServoLoop(MILL, MS)]
+    for loop in loops:
+        feed(loop, p, v, a, start_ns + offset_ns, 0, chunk_points)
+    return loops, len(p)
+
+
+def step_both(single: ServoLoop, block: ServoLoop, steps: int, seed: int, fault=None):
+    """Single-step one loop, run the other in random block lengths; returns both feedbacks."""
+    rng = np.random.default_rng(seed)
+    out_single = [single.step(k * MS) for k in range(steps)]
+    out_block, k = [], 0
+    while k < steps:
+        if fault is not None and k == fault[0]:
+            fault[1](block)
+        limit = fault[0] - k if fault is not None and k < fault[0] else steps - k
+        taken = block.run(k * MS, int(min(rng.integers(1, 150), limit)))
+        out_block += taken
+        k += len(taken)
+    return out_single, out_block
+
+
+def assert_same(out_single, out_block):
+    assert len(out_single) == len(out_block)
+    for a, b in zip(out_single, out_block):
+        assert a.stamp_ns == b.stamp_ns
+        assert np.array_equal(a.positions, b.positions)
+        assert np.array_equal(a.velocities, b.velocities)
+        assert np.array_equal(a.following_error, b.following_error)
+
+
+@pytest.mark.parametrize("chunk_points, offset_ns", [(100, 0), (37, 0), (100, 400_000)])
+def test_blocks_equal_single_steps_exactly(chunk_points, offset_ns):
+    (single, block), n = twin_loops(chunk_points, offset_ns)
+    out_single, out_block = step_both(single, block, n + 50, seed=chunk_points + offset_ns)
+    assert_same(out_single, out_block)
+    assert np.array_equal(single.max_following_error, block.max_following_error)
+    assert all(np.array_equal(x, y) for x, y in zip(single.reference, block.reference))
+    assert block.alarm == single.alarm  # off the grid, the last point is passed moving: the same stop
+
+
+def test_a_block_ends_at_the_step_that_trips_and_the_stop_follows_as_single_stepped():
+    (single, block), n = twin_loops(100)
+    hit = 200  # a crash displaces x by 5 mm before step 200 of both loops
+
+    def crash(loop: ServoLoop) -> None:
+        loop.inject("x", 0.005)
+
+    out_single = [single.step(k * MS) for k in range(hit)]
+    crash(single)
+    out_single += [single.step(k * MS) for k in range(hit, n)]
+    _, out_block = step_both(ServoLoop(MILL, MS), block, n, seed=3, fault=(hit, crash))
+    assert single.alarm.startswith("following error on x")
+    assert block.alarm == single.alarm
+    assert_same(out_single, out_block)

@@ -1,0 +1,65 @@
+"""Stress: the real-time tests, many times in a row, beside two busy processes and the rest
+of the suite (the load under which a fresh-clone `make test` once saw a first chunk arrive
+17 ms late and the bridge die). Not part of `make test`; `make stress` runs it.
+
+Usage: python bench/stress_real_time.py [--runs 50]
+Prints one line per run and a summary; writes bench/results/stress_real_time.txt.
+Every helper process is bounded in time and stopped by its own id at the end.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from publish import write_result
+
+ROOT = Path(__file__).resolve().parents[1]
+REAL_TIME_TESTS = ["test/test_real_time.py", "test/test_node_survival.py"]
+BUSY = "import time\nend = time.monotonic() + {limit}\nwhile time.monotonic() < end:\n    pass\n"
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=50)
+    parser.add_argument("--limit", type=float, default=7200.0, help="longest the load runs (s)")
+    args = parser.parse_args()
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    pytest = [sys.executable, "-m", "pytest", "-q", "-p", "no:warnings", "-p", "no:cacheprovider"]
+    busy = [subprocess.Popen([sys.executable, "-c", BUSY.format(limit=args.limit)]) for _ in range(2)]
+    rest_log = tempfile.TemporaryFile("w+")
+    rest = subprocess.Popen(pytest + [f"--ignore={t}" for t in REAL_TIME_TESTS], cwd=ROOT, env=env,
+                            stdout=rest_log, stderr=subprocess.STDOUT)
+    lines, failed = [], 0
+    try:
+        for run in range(1, args.runs + 1):
+            start = time.monotonic()
+            result = subprocess.run(pytest + REAL_TIME_TESTS, cwd=ROOT, env=env, capture_output=True, text=True)
+            tail = (result.stdout.strip().splitlines() or ["(no output)"])[-1]
+            failed += result.returncode != 0
+            suite = "running" if rest.poll() is None else "done"
+            line = f"run {run:3d}: exit {result.returncode}  {time.monotonic() - start:6.1f} s  rest of suite {suite}  {tail}"
+            print(line, flush=True)
+            lines.append(line)
+            if result.returncode != 0:
+                lines.append(result.stdout[-3000:])
+    finally:
+        for proc in busy + [rest]:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    rest_log.seek(0)
+    rest_tail = (rest_log.read().strip().splitlines() or ["(no output)"])[-1]
+    summary = (f"{args.runs - failed} of {args.runs} runs passed (2 busy processes; the rest of the suite "
+               f"alongside: {rest_tail})")
+    print(summary)
+    write_result("stress_real_time.txt", "\n".join(lines + [summary]))
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,47 @@
+"""A node spun by cnc_msgs_py.node survives what its callbacks or the executor raise."""
+from __future__ import annotations
+
+import pytest
+import rclpy
+from rclpy.node import Node
+
+from cnc_msgs_py.node import spin
+
+RCLPY_ERROR = "Unable to convert call argument '0' to Python object"  # as take_message raised it
+
+
+@pytest.fixture
+def node():
+    rclpy.init()
+    node = Node("survivor")
+    yield node
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
+def test_an_error_mid_run_is_logged_and_the_node_spins_on(node):
+    ticks = []
+
+    def tick() -> None:
+        ticks.append(len(ticks))
+        if len(ticks) in (2, 3):
+            raise RuntimeError(RCLPY_ERROR)
+        if len(ticks) == 6:
+            rclpy.shutdown()
+
+    node.create_timer(0.001, tick)
+    spin(node)
+    assert len(ticks) == 6  # two errors, then three more callbacks until the shutdown
+
+
+def test_an_error_while_shutting_down_ends_the_spin_quietly(node):
+    ticks = []
+
+    def tick() -> None:
+        ticks.append(len(ticks))
+        rclpy.shutdown()
+        raise RuntimeError(RCLPY_ERROR)
+
+    node.create_timer(0.001, tick)
+    spin(node)  # returns, does not raise
+    assert len(ticks) == 1

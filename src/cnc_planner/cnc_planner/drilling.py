@@ -86,7 +86,9 @@ BOTTOM_STEADY_S = 0.3  # s of steady feed before R in those rounds: the drive se
 XY_ACCELERATION_SHARES = (1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3)  # of an S1 move's limits,
 XY_JERK_SHARES = (1.0, 0.3, 0.1, 0.03, 0.01, 3e-3, 1e-3, 3e-4)  # tried fastest first
 XY_HEADROOM_TRIES = 24  # moves tried before the plain (uncompensated) one
+XY_VELOCITY_ROUNDS = 3  # lower velocity shares tried when the command overshoots the velocity
 XY_HEADROOM_MARGIN = 0.99  # of the limits: the compensated command stays this far inside them
+XY_HEADROOM_AIM = 0.98  # a lowered velocity share aims this far inside them
 
 
 @dataclass(frozen=True)
@@ -456,16 +458,16 @@ class _Job:
 
 
 def _xy_move(machine: Machine, p0: tuple[float, float], p1: tuple[float, float], tol: float,
-             shares: tuple[float, float] = (1.0, 1.0)) -> _XYMove:
+             shares: tuple[float, float, float] = (1.0, 1.0, 1.0)) -> _XYMove:
     """S1 as the builder's rapid will plan it, with its command's tolerance crossings;
-    ``shares`` of the acceleration and of the jerk limits leave headroom for the drive
+    ``shares`` of the velocity, acceleration and jerk limits leave headroom for the drive
     compensation (_xy_headroom)."""
     target = dict(zip(XY, p1))
     joints = [j for j, a, b in zip(XY, p0, p1) if abs(a - b) > 1e-12]
     if not joints:
         return _XYMove(target, None, math.inf, 0.0)
     limits = [axis_limits(machine.axes[j]) for j in joints]
-    limits = [Limits(lim.velocity, lim.acceleration * shares[0], lim.jerk * shares[1]) for lim in limits]
+    limits = [Limits(lim.velocity * shares[0], lim.acceleration * shares[1], lim.jerk * shares[2]) for lim in limits]
     move = point_to_point([dict(zip(XY, p0))[j] for j in joints], [target[j] for j in joints], limits)
     ts = np.arange(0.0, move.duration + FINE_STEP, FINE_STEP)
     p = move.sample_all(np.minimum(ts, move.duration))[0]
@@ -481,21 +483,30 @@ def _xy_move(machine: Machine, p0: tuple[float, float], p1: tuple[float, float],
 
 
 def _xy_headroom(machine: Machine, period: float, xy: _XYMove, p0: tuple[float, float],
-                 p1: tuple[float, float], tol: float) -> tuple[tuple[float, float], np.ndarray | None]:
-    """Shares of the acceleration and jerk limits for one S1 move, and its correction,
-    such that the compensated command stays within the axis limits: the fastest move of
-    a grid of shares whose command fits. The correction leads the motion by the drive's
-    lag, so it adds about lag x jerk to the acceleration: a lower jerk usually buys the
-    headroom for less time than a lower acceleration. If none fits in XY_HEADROOM_TRIES,
-    the plain move (no correction, within the limits by construction): the timing
-    search then waits for the feedback."""
-    grid = [(a, j) for a in XY_ACCELERATION_SHARES for j in XY_JERK_SHARES]
-    moves = sorted(((_xy_move(machine, p0, p1, tol, shares), shares) for shares in grid), key=lambda m: m[0].duration)
-    for candidate, shares in moves[:XY_HEADROOM_TRIES]:
-        correction, (over_v, over_a) = _xy_correction(machine, period, candidate)
-        if over_v <= XY_HEADROOM_MARGIN and over_a <= XY_HEADROOM_MARGIN:
-            return shares, correction
-    return (1.0, 1.0), None
+                 p1: tuple[float, float], tol: float) -> tuple[tuple[float, float, float], np.ndarray | None]:
+    """Shares of the velocity, acceleration and jerk limits for one S1 move, and its
+    correction, such that the compensated command stays within the axis limits: the
+    fastest move of a grid of acceleration and jerk shares whose command fits. The
+    correction leads the motion by the drive's lag, so it adds about lag x jerk to the
+    acceleration: a lower jerk usually buys the headroom for less time than a lower
+    acceleration. A command over the velocity limit lowers the velocity share and the
+    grid is tried again. If nothing fits, the plain move (no correction, within the
+    limits by construction): the timing search then waits for the feedback."""
+    velocity = 1.0
+    for _ in range(XY_VELOCITY_ROUNDS):
+        grid = [(velocity, a, j) for a in XY_ACCELERATION_SHARES for j in XY_JERK_SHARES]
+        moves = sorted(((_xy_move(machine, p0, p1, tol, shares), shares) for shares in grid),
+                       key=lambda m: m[0].duration)
+        for candidate, shares in moves[:XY_HEADROOM_TRIES]:
+            correction, (over_v, over_a) = _xy_correction(machine, period, candidate)
+            if over_v > XY_HEADROOM_MARGIN:
+                velocity *= XY_HEADROOM_AIM / over_v
+                break
+            if over_a <= XY_HEADROOM_MARGIN:
+                return shares, correction
+        else:
+            break
+    return (1.0, 1.0, 1.0), None
 
 
 def _xy_correction(machine: Machine, period: float, xy: _XYMove) -> tuple[np.ndarray, tuple[float, float]]:

@@ -81,7 +81,7 @@ XY_LEAD_PERIODS = 8     # rest before an S1 move in its learning reference: room
 XY_FIXED_PERIODS = 4    # of which uncorrected: the compensated command leads by the rest
 XY_COMMAND_LEAD = XY_LEAD_PERIODS - XY_FIXED_PERIODS + 1  # periods: from its last rest sample
 XY_SETTLED_COUNTS = 0.25  # encoder counts: an X/Y correction below this has settled
-BOTTOM_ROUNDS = 3  # drive-model rounds placing the Z command's turning point at a hole's bottom
+BOTTOM_ROUNDS = 6  # drive-model rounds placing the Z command's turning point at a hole's bottom
 BOTTOM_STEADY_S = 0.3  # s of steady feed before R in those rounds: the drive settles into it
 XY_ACCELERATION_SHARES = (1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3)  # of an S1 move's limits,
 XY_JERK_SHARES = (1.0, 0.3, 0.1, 0.03, 0.01, 3e-3, 1e-3, 3e-4)  # tried fastest first
@@ -277,8 +277,8 @@ class _Job:
         depth. A drive with velocity lag overshoots the end of a feed stroke (about 16 um
         on mill3 at 1200 mm/min), one without full feed-forward falls short. The drive
         model runs the stroke (from a steady feed) and the fast exit, and the turning
-        point moves by the error, a few rounds (the drive is linear: the first round
-        lands within an encoder count or two)."""
+        point moves by the error, a few rounds (one on mill3; a stiff drive whose bottom
+        feedback rings needs about five, as the stroke's shape changes with its end)."""
         c = self.cycle
         _, top, bottom = c.planes(hole)
         if not c.compensate_xy or c.vibration is not None or c.peck is not None or c.dwell > 0:

@@ -221,8 +221,11 @@ def test_internal_two_start_thread():
     assert [p["start"] for p in report["passes"]] == [0, 1] * 4
     assert report["chips_broken"] and report["full_depth"] and report["helix_residual_mm"] < 0.01
     x = result["command"][0][:, 0]
-    # the bore grows with depth: x from the clearance inside it to the full depth outside
-    assert x.min() == pytest.approx(7e-3, abs=1e-9) and x.max() == pytest.approx(8.6e-3, abs=1e-6)
+    # the bore grows with depth: x from the clearance inside it to the full depth outside; the
+    # compensated command leads the retract straight into the next plunge and passes the
+    # clearance radius (away from the stock) by less than a micrometre
+    assert x.min() == pytest.approx(7e-3, abs=1e-6) and x.min() <= 7e-3
+    assert x.max() == pytest.approx(8.6e-3, abs=1e-6)
 
 
 BAD = [

@@ -15,7 +15,12 @@ helix angle psi of a pass is the spindle angle counted from where that pass's he
 passes start_z; psi is the groove coordinate, the same point of the groove on every pass:
 
     depth(psi) = d_k - A_k * (1 - w(D_k*psi/2pi + k*phase_shift/2pi))
-    x = major_radius - depth,   z = start_z - pitch*psi/2pi - depth*tan(infeed_angle)
+    x = surface(g) - depth,   z = g - depth*tan(infeed_angle),   g = start_z - pitch*psi/2pi
+
+with surface(g) = major_radius on a straight thread; on a taper thread (`taper`, diameter
+per length) the stock is a cone, major_radius at the face and growing by taper/2 per unit
+of length into the part (shrinking into a bore), so x follows the cone along the groove
+and both axes stay locked to the spindle angle; the depth stays radial below the cone.
 
 with w the vibration module's waveform (0 at the return point, 1 at the turning point),
 A_k = Q * (d_k - d_(k-1)) the radial amplitude and D_k = D + k*D_step. The vibration
@@ -26,12 +31,13 @@ least once per vibration. Spring passes run at full depth without vibration and 
 off what the last returns left standing.
 
 Every pass's helix passes start_z at the same spindle phase (the index, plus 360/starts
-per start), so all passes land in one groove; the tool idles at the pass start until
-the phase comes round, as a real lathe waits for the index pulse. z is locked to the
-spindle angle, not to time. The ramp onto the helix runs in the air before the face
-z=0; past end_z the tool pulls out on a retreating stroke into the relief groove.
-Each pass's x/z command is pre-compensated with the drive model (vibration.learn_correction)
-so the bridge's feedback, not only the command, holds lead, depth and flank offset.
+per start), so all passes land in one groove; z is locked to the spindle angle, not to
+time. Between passes the tool does not stop (ThreadCycle): it pulls out past end_z into
+the relief groove on a retreating stroke, returns in the air and lands on the next
+pass's running helix before the face z=0 at the servo instant the spindle phase allows.
+The whole cycle's x/z command is pre-compensated with the drive model
+(vibration.learn_correction) so the bridge's feedback, not only the command, holds lead,
+depth and flank offset.
 """
 from __future__ import annotations
 
@@ -111,6 +117,7 @@ class ThreadSpec:
     spring_passes: int = 1
     starts: int = 1
     internal: bool = False
+    taper: float = 0.0  # diameter change per length into the part: external widens, internal narrows
     vibration: ThreadVibration | None = None
     origin: tuple[float, float] = (0.0, 0.0)
 
@@ -128,7 +135,7 @@ class ThreadSpec:
             depth=t.depth, spindle_speed=job.spindle_rpm,
             passes=len(t.depths) if t.depths else t.passes,
             depths=tuple(t.depths) if t.depths else None, infeed_angle=t.infeed_angle,
-            spring_passes=t.spring_passes, starts=t.starts, internal=t.internal,
+            spring_passes=t.spring_passes, starts=t.starts, internal=t.internal, taper=t.taper,
             vibration=None if vib is None else ThreadVibration(vib.D, vib.Q, vib.phase_shift, vib.D_step),
             origin=origin,
         )
@@ -142,6 +149,17 @@ class ThreadSpec:
     def radial(self) -> float:
         """x per unit of depth: -1 external, +1 internal (the bore grows)."""
         return 1.0 if self.internal else -1.0
+
+    def surface(self, z: np.ndarray | float) -> np.ndarray | float:
+        """Radius of the stock's surface (the major radius, a cone on a taper thread) at
+        program z: major_radius at the face, growing into an external part, shrinking into
+        a bore, by taper/2 per unit of length."""
+        return self.major_radius + self.radial * self.taper / 2 * z
+
+    @property
+    def clear_radius(self) -> float:
+        """Program x between passes: RETRACT_CLEARANCE outside the surface everywhere on the thread."""
+        return self.major_radius - self.radial * (RETRACT_CLEARANCE - self.taper / 2 * self.end_z)
 
     @property
     def lead_speed(self) -> float:
@@ -229,6 +247,14 @@ def _check_fields(spec: ThreadSpec) -> None:
         raise ThreadError(
             f"thread.depth: {_mm(spec.depth)} is not smaller than major_radius {_mm(spec.major_radius)}"
         )
+    if not (math.isfinite(spec.taper) and 0.0 <= spec.taper < 1.0):
+        raise ThreadError(f"thread.taper: must be >= 0 and < 1 (diameter per length), got {spec.taper!r}")
+    narrowest = min(spec.surface(spec.end_z), spec.major_radius)
+    if spec.depth >= narrowest:
+        raise ThreadError(
+            f"thread.taper: the thread narrows to radius {_mm(narrowest)} at end_z, not more than "
+            f"thread.depth {_mm(spec.depth)}"
+        )
     if not 0.0 <= spec.infeed_angle < math.pi / 2:
         raise ThreadError(
             f"thread.infeed_angle: {math.degrees(spec.infeed_angle):g} deg is outside 0..90 deg "
@@ -302,8 +328,8 @@ def _check_room(spec: ThreadSpec, machine: Machine) -> None:
         )
     x_axis, z_axis = machine.axis("x"), machine.axis("z")
     x0, z0 = spec.origin
-    x_clear = spec.major_radius - spec.radial * RETRACT_CLEARANCE
-    x_deep = spec.major_radius + spec.radial * spec.depth
+    x_clear = spec.clear_radius
+    x_deep = spec.surface(spec.end_z) + spec.radial * spec.depth
     for x in (x0 + x_clear, x0 + x_deep):
         if not x_axis.within_travel(x):
             raise ThreadError(
@@ -417,7 +443,8 @@ def _check_follow(spec: ThreadSpec, machine: Machine) -> None:
             continue
         rate = p.per_rev * omega / TWO_PI  # vibrations per second
         radial = p.amplitude * maxima * rate ** np.arange(1, 4)  # depth: |v|, |a|, |j|
-        for joint, need in (("x", radial), ("z", tan * radial + np.array([spec.lead_speed, 0.0, 0.0]))):
+        cone = np.array([spec.taper / 2 * spec.lead_speed, 0.0, 0.0])  # x follows the taper
+        for joint, need in (("x", radial + cone), ("z", tan * radial + np.array([spec.lead_speed, 0.0, 0.0]))):
             axis = machine.axis(joint)
             for order, (quantity, limit, unit) in enumerate((
                 ("velocity", axis.max_velocity, "m/s"), ("acceleration", axis.max_acceleration, "m/s^2"),
@@ -488,10 +515,12 @@ def _helix(spec: ThreadSpec, cut: Pass, psi: np.ndarray) -> np.ndarray:
     w, w1, w2, _ = waveform(cut.per_rev * psi / TWO_PI + cut.phase)
     depth = cut.depth - cut.amplitude * (1.0 - w)
     ddepth, dddepth = cut.amplitude * rate * w1, cut.amplitude * rate**2 * w2
+    groove = spec.start_z + s * spec.pitch * psi / TWO_PI  # the groove's z under the tool
+    cone = spec.radial * spec.taper / 2 * s * spec.lead_speed  # x speed of the surface along it
     out = np.empty((3, psi.size, 2))
-    out[0, :, 0] = spec.origin[0] + spec.major_radius + spec.radial * depth
-    out[0, :, 1] = spec.origin[1] + spec.start_z + s * (spec.pitch * psi / TWO_PI + depth * tan)
-    out[1] = np.stack([spec.radial * ddepth, s * (spec.lead_speed + tan * ddepth)], 1)
+    out[0, :, 0] = spec.origin[0] + spec.surface(groove) + spec.radial * depth
+    out[0, :, 1] = spec.origin[1] + groove + s * depth * tan
+    out[1] = np.stack([cone + spec.radial * ddepth, s * (spec.lead_speed + tan * ddepth)], 1)
     out[2] = np.stack([spec.radial * dddepth, s * tan * dddepth], 1)
     return out
 
@@ -546,7 +575,7 @@ class ThreadCycle:
                  drive: DriveModel | None = None) -> None:
         self.spec, self.machine, self.period, self.theta0 = spec, machine, period, theta0
         self.t_lead = round(LEAD_TIME / period) * period
-        self.x_clear = spec.origin[0] + spec.major_radius - spec.radial * RETRACT_CLEARANCE
+        self.x_clear = spec.origin[0] + spec.clear_radius
         self.tracks: list[list[Stretch]] = [[(0.0, _held(self.x_clear))],
                                             [(0.0, _held(spec.origin[1] + spec.start_z))]]
         self.cuts: list[CutTiming] = []
@@ -575,7 +604,7 @@ class ThreadCycle:
             last = self.cuts[-1]
             t_begin, x_free = last.t_out, last.t_out + last.retract.duration
             out = np.arange(math.ceil(last.retract.duration / period) + 1) * period
-            depth = spec.radial * (_evaluate(last.retract, out)[0, :, 0] - x0 - spec.major_radius)
+            depth = spec.radial * (_evaluate(last.retract, out)[0, :, 0] - x0 - spec.surface(spec.end_z))
             t_clear = last.t_out + float(out[np.flatnonzero(depth <= 0.0)[0]])
             t_go = math.ceil(max(t_clear, last.t_out + last.stop.duration) / period - 1e-9) * period
             z_from = last.stop.at_time(last.stop.duration)[0][0]
@@ -604,7 +633,7 @@ class ThreadCycle:
                      [(t_go, _moving(t_go, back))]]
             grid = np.arange(math.floor(t_begin / period), k) * period
             x, z = (self._sample(track + extra, grid)[0] for track, extra in zip(self.tracks, tried))
-            depth = spec.radial * (x - x0 - spec.major_radius)
+            depth = spec.radial * (x - x0 - spec.surface(z - z0))
             over_stock = (s * (z - z0) >= 0.0) & (s * (z - z0) <= s * spec.end_z)
             if np.any(over_stock & (depth > 0.0)):
                 continue
@@ -704,8 +733,7 @@ def plan_thread(builder: PlanBuilder, spec: ThreadSpec, servo_period: float = 1e
     drive = DriveModel(machine, servo_period, joints=JOINTS) if compensate else None
     spindle = builder.timelines[SPINDLE]
     builder.spindle(spec.spindle_speed)
-    builder.rapid({"x": x_origin + spec.major_radius - spec.radial * RETRACT_CLEARANCE,
-                   "z": z_origin + spec.start_z})
+    builder.rapid({"x": x_origin + spec.clear_radius, "z": z_origin + spec.start_z})
     t_ready = max(builder.end_time(list(JOINTS)) + SETTLE_TIME, builder.spindle_ready + SPINDLE_SETTLE)
     t0 = math.ceil(t_ready / servo_period - 1e-9) * servo_period
     cycle = ThreadCycle(spec, machine, servo_period, spindle.position_at(t0), drive)

@@ -1,7 +1,9 @@
 """Thread-cutting analysis from sampled positions only (a bag's commands or feedback).
 
 A thread is judged in its groove coordinates. The tool's radial depth below the stock
-surface is read from x; its groove coordinate g is the axial position of the nominal
+surface (a cylinder, or on a taper thread a cone: radius major_radius at the face,
+changing by taper/2 per unit of length, growing into an external part and shrinking into
+a bore) is read from x and z; its groove coordinate g is the axial position of the nominal
 groove line under it, g = z - (depth * tan(infeed_angle)) along the feed, so moving along
 the infeed line (the flank) leaves g unchanged. On a synchronised pass g advances exactly
 one lead per spindle revolution; that is how passes are found without any planner event.
@@ -56,6 +58,7 @@ class Groove:
     infeed_angle: float
     starts: int
     internal: bool
+    taper: float = 0.0  # diameter per length into the part: the surface is a cone
 
     @classmethod
     def from_job(cls, thread: dict) -> Groove:
@@ -69,6 +72,7 @@ class Groove:
             infeed_angle=deg(thread.get("infeed_angle", 29.5)),
             starts=int(thread.get("starts", 1)),
             internal=bool(thread.get("internal", False)),
+            taper=float(thread.get("taper", 0.0)),
         )
 
     @property
@@ -200,7 +204,10 @@ def analyze_thread(
     t, x, z = (np.asarray(a, dtype=float) for a in (t, x, z))
     theta = np.unwrap(np.asarray(spindle, dtype=float))
     s, lead, tan = groove.direction, groove.lead, math.tan(groove.infeed_angle)
-    depth = groove.radial * (x - groove.major_radius)
+    # depth below the cone's surface, whose radius major + radial*taper/2*g depends on the
+    # groove coordinate g = z - s*depth*tan under the tool: solved for depth
+    half = groove.taper / 2
+    depth = (groove.radial * (x - groove.major_radius) - half * z) / (1.0 - s * tan * half)
     g = z - s * depth * tan
     grid = groove.grid()
     psi = s * (grid - groove.start_z) / lead  # revolutions along the helix from start_z

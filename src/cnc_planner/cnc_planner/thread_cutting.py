@@ -42,6 +42,7 @@ depth and flank offset.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from types import SimpleNamespace
 
@@ -525,7 +526,8 @@ def _helix(spec: ThreadSpec, cut: Pass, psi: np.ndarray) -> np.ndarray:
     return out
 
 
-Stretch = tuple[float, "callable"]  # (cycle time it begins, t -> (3, len(t)) p, v, a of one axis)
+Stretch = tuple[float, Callable[[np.ndarray], np.ndarray]]  # (cycle time it begins,
+# cycle times -> (3, len(t)): one axis's position, velocity and acceleration)
 
 
 def _held(position: float) -> Stretch:

@@ -5,8 +5,12 @@ The issue-9 example job (start_z 4, end_z -16, major radius 6, pitch 1.75, depth
 planned, sampled every servo period, run through DriveModel.simulate (what the bridge
 publishes) and read back with analyze_thread from positions only.
 
-Table 1, at 600 rpm: cycle time, longest chip of the cutting passes, air-cut share,
-helix residual, depth error and overcut, with and without the vibration.
+Table 1, at 600 rpm: cycle time, mean time between synchronised passes (from one pass
+leaving its helix to the next locking on, as analyze_thread finds them on feedback),
+longest chip of the cutting passes, air-cut share, helix residual, depth error and
+overcut, with and without the vibration, on the shipped lathe and on the "fair"
+description of bench-peer (every max_jerk 1e6, bench/peer/ours.py), against which
+LinuxCNC G76 takes 9.224 s with 0.164 s between passes (bench/results/peer.txt).
 
 Table 2: the highest spindle speed at which the feedback still breaks the chip within one
 revolution on every cutting pass, reaches full depth within 0.02 mm and stays within
@@ -47,6 +51,7 @@ LOW_RPM = 300.0
 RPM_RESOLUTION = 0.01  # relative width at which the binary search stops
 THREAD = {"start_z": 4.0, "end_z": -16.0, "major_radius": 6.0, "pitch": 1.75, "depth": 1.07,
           "passes": 6, "infeed_angle": 29.5, "spring_passes": 1}
+FAIR_JERK = 1e6  # m/s^3, rad/s^3: bench/peer/ours.py TRAPEZOID_JERK
 VIBRATION = ThreadVibration(D=1.5, Q=1.2, phase_shift=math.pi, D_step=0.0)
 
 
@@ -62,6 +67,13 @@ def lathe(velocity_ff: float | None = None) -> Machine:
         return machine
     drives = {j: dataclasses.replace(machine.drives[j], velocity_ff=velocity_ff) for j in ("x", "z")}
     return dataclasses.replace(machine, drives={**machine.drives, **drives})
+
+
+def fair() -> Machine:
+    """The lathe with every max_jerk 1e6, as bench/peer/ours.py writes its trapezoid variant."""
+    machine = load_machine("lathe")
+    axes = {name: dataclasses.replace(axis, max_jerk=FAIR_JERK) for name, axis in machine.axes.items()}
+    return dataclasses.replace(machine, axes=axes)
 
 
 def cut(thread: ThreadSpec, machine: Machine, compensate: bool = True) -> tuple[float, dict]:
@@ -113,12 +125,14 @@ def highest_rpm(job: tuple[str, float | None, bool]) -> str:
     return f"{name:<26} {command:<12} {limit:>10.0f} {shown:>14}"
 
 
-def row(job: tuple[str, ThreadVibration | None]) -> str:
-    name, vibration = job
-    duration, report = cut(spec(600.0, vibration), lathe())
+def row(job: tuple[str, str, ThreadVibration | None]) -> str:
+    name, machine, vibration = job
+    duration, report = cut(spec(600.0, vibration), fair() if machine == "fair" else lathe())
     cutting = [p for p in report["passes"] if p["cutting"]]
     air = 100 * float(np.mean([p["aircut_share"] for p in cutting]))
-    return (f"{name:<18} {duration:8.2f} {report['max_chip_revs']:10.2f} {air:8.1f} "
+    passes = report["passes"]
+    between = np.mean([b["t_start"] - a["t_end"] for a, b in zip(passes, passes[1:])])
+    return (f"{machine:<6} {name:<18} {duration:8.3f} {between:9.3f} {report['max_chip_revs']:10.2f} {air:8.1f} "
             f"{report['helix_residual_mm'] * 1e3:10.2f} {report['depth_error_mm'] * 1e3:10.2f} "
             f"{report['overcut_mm'] * 1e3:10.2f}")
 
@@ -126,7 +140,9 @@ def row(job: tuple[str, ThreadVibration | None]) -> str:
 def main() -> None:
     start = time.perf_counter()
     with ProcessPoolExecutor(max_workers=2) as pool:
-        comparison = pool.map(row, [("with vibration", VIBRATION), ("without (G76-like)", None)])
+        comparison = pool.map(row, [(name, machine, vibration) for machine in ("lathe", "fair")
+                                    for name, vibration in (("with vibration", VIBRATION),
+                                                            ("without (G76-like)", None))])
         speeds = pool.map(highest_rpm, [
             ("lathe as configured", None, True), ("lathe as configured", None, False),
             ("x/z velocity_ff off", 0.0, True), ("x/z velocity_ff off", 0.0, False),
@@ -135,10 +151,12 @@ def main() -> None:
     lines = [
         "Thread chips: issue-9 example (start_z 4, end_z -16, major radius 6, pitch 1.75, depth 1.07 mm,",
         "6 passes + 1 spring, infeed 29.5 deg; vibration D 1.5, Q 1.2, phase shift 180 deg), judged on",
-        f"the drive model's feedback (servo {SERVO_PERIOD * 1e3:g} ms) by analyze_thread; lathe as configured.",
+        f"the drive model's feedback (servo {SERVO_PERIOD * 1e3:g} ms) by analyze_thread.",
         "",
-        "At 600 rpm (chip and air-cut over the cutting passes; residual, error and overcut in um)",
-        f"{'':<18} {'cycle s':>8} {'chip revs':>10} {'air-cut%':>8} {'helix um':>10} "
+        "At 600 rpm (between: mean s from a pass leaving its helix to the next on it; chip and air-cut",
+        "over the cutting passes; residual, error and overcut in um). lathe: as shipped; fair: every",
+        "max_jerk 1e6, where LinuxCNC G76 takes 9.224 s, 0.164 s between passes (bench/results/peer.txt).",
+        f"{'':<25} {'cycle s':>8} {'between s':>9} {'chip revs':>10} {'air-cut%':>8} {'helix um':>10} "
         f"{'depth um':>10} {'overcut um':>10}",
         *comparison,
         "",

@@ -293,8 +293,10 @@ def notes(rows: list[Row], lc: dict, us: dict, sessions: dict) -> list[str]:
             lines += [f"Thread: LinuxCNC G76 cuts {g['passes']} passes + spring, each a continuous chip of "
                       f"{g['chip']:.2f} rev (the whole thread); ours breaks it at {f['chip']:.2f} rev.",
                       f"  Cycle: passes last {g['pass_s']:.3f} s (G76) / {f['pass_s']:.3f} s (ours); between passes "
-                      f"G76 needs {g['gap_s']:.3f} s, ours {f['gap_s']:.3f} s (drive settle, compensation lead-in and",
-                      "  the wait for the spindle phase), which is where our thread cycle is slower."]
+                      f"G76 needs {g['gap_s']:.3f} s (retract, rapid back, plunge, wait for the index), ours "
+                      f"{f['gap_s']:.3f} s",
+                      "  (retract overlapping the return, which lands on the next pass's running helix when the "
+                      "spindle phase comes round)."]
         if row.kind == "turn" and figs.get("G71", {}).get("fb"):
             g, f, j = figs["G71"]["fb"], us[row.name]["fair"], us[row.name]["jerk"]
             lines += [f"Roughing: G71 feeds {g['feed_mm']:.0f} mm, {g['air_mm']:.0f} mm of it in air (it assumes a "

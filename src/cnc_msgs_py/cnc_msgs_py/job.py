@@ -150,6 +150,7 @@ THREAD = Obj({
     "spring_passes": Num("1", min=0, max=10, integer=True, default=1),
     "starts": Num("1", min=1, max=16, integer=True, default=1),
     "internal": Bool(default=False),
+    "taper": Num("1", min=0.0, max=0.5, default=0.0),  # diameter per length (NPT 1:16 = 0.0625)
 }, default=None)
 
 PATH = Obj({

@@ -8,6 +8,7 @@ are the ones the figures were judged against. Long runs are thinned for drawing 
 """
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 from types import SimpleNamespace
@@ -23,6 +24,7 @@ from cnc_msgs_py.machine import SPINDLE, Machine, load_machine  # noqa: E402
 from cnc_msgs_py.units import to_mm
 from cnc_servo_bridge.aircut import AircutReport, analyze_aircut  # noqa: E402
 from cnc_servo_bridge.recording import Run  # noqa: E402
+from cnc_servo_bridge.thread_analysis import cross_section  # noqa: E402
 
 from .drilling import DrillCycle  # noqa: E402
 from .jobs import drill_cycle  # noqa: E402
@@ -35,6 +37,7 @@ MM = to_mm(1.0)  # m -> mm, as a scale for plot axes
 LINE_POINTS = 4000  # min/max buckets per time trace: peaks survive, drawing stays fast
 PATH_POINTS = 20000  # samples per drawn tool path (1 kHz feedback of a smooth path)
 PHASE_BINS = 360  # 1 deg columns of the air-cut map
+SECTION_REVS = 3.0  # revolutions of groove shown pass against pass in the thread cross-section
 TWO_PI = 2.0 * math.pi
 MOVING = 1e-4  # m/s: below this an axis counts as standing (end of the last retract)
 LOOKAHEAD_MOVES = 3  # planned moves a feedback sample may be matched to: lag cuts short moves
@@ -61,10 +64,13 @@ def write_plots(run: Run, report: dict, out_dir: Path) -> list[Path]:
     written = [_save(_following_error(run, window, report), out_dir / "following_error.png")]
     if "thread" in report:
         written.append(_save(_thread_passes(report["thread"], report["job_id"]), out_dir / "thread_passes.png"))
-    if not {"drill", "turn", "aircut"} & report.keys():
+    if not {"drill", "turn", "aircut", "thread"} & report.keys():
         return written
     _, job = last_job(run)
     machine = load_machine(job.machine)
+    if "thread" in report:
+        written.append(_save(_thread_section(run, job, machine, window, report["job_id"]),
+                             out_dir / "thread_section.png"))
     if "drill" in report:
         written.append(_save(_drill_xz(run, job, machine, window), out_dir / "drill_xz.png"))
         written.append(_save(_drill_timing(run, job, machine, window, report), out_dir / "drill_timing.png"))
@@ -103,6 +109,43 @@ def _thread_passes(thread: dict, job_id: str) -> plt.Figure:
     bottom.set_xticks(index)
     bottom.legend(loc="upper left", fontsize=8)
     bottom.grid(alpha=0.3)
+    fig.tight_layout()
+    return fig
+
+
+def _thread_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray,
+                    job_id: str) -> plt.Figure:
+    """The groove's cross-section on feedback (thread_analysis.cross_section, in program
+    coordinates as the report judges it): per pass the tool tip's path in the plane of the
+    thread form, sliding along the flank with its vibration; and the depth along the first
+    revolutions of the groove, each pass against the one before it (where a pass's return
+    rises above the previous pass's turning point the tool is in air and the chip breaks)."""
+    thread = json.loads(run.goals[-1])["thread"]
+    kin = Kinematics(machine, job.setup, job.tool)
+    t, q = run.feedback_t[window], run.feedback[window]
+    radius, z = kin.tip_radius_z(q[:, run.column("x")], q[:, run.column("z")])
+    passes = cross_section(t, radius, z, q[:, run.column(SPINDLE)], thread)
+    colours = plt.get_cmap("viridis")(np.linspace(0.0, 0.9, max(len(passes), 1)))
+    fig, (section, along) = plt.subplots(1, 2, figsize=(12, 5.5), gridspec_kw={"width_ratios": [1, 1.6]})
+    for p, colour in zip(passes, colours):
+        label = f"pass {p['index'] + 1}"
+        section.plot(p["offset_mm"], p["depth_mm"], color=colour, lw=0.8, label=label)
+        shown = p["groove_revs"] <= SECTION_REVS
+        along.plot(p["groove_revs"][shown], p["depth_mm"][shown], color=colour, lw=1.0, label=label)
+    deepest = max((float(np.max(p["depth_mm"])) for p in passes), default=0.0)
+    flank = np.array([0.0, deepest])
+    section.plot(flank * math.tan(math.radians(thread.get("infeed_angle", 29.5))), flank, "k--", lw=1,
+                 label="infeed line")
+    section.set_xlabel("axial offset from the nominal helix along the feed (mm)")
+    section.set_ylabel("depth below the surface (mm)")
+    section.set_title(f"{job_id}: groove cross-section on feedback")
+    along.set_xlabel("along the groove from the face (spindle revolutions)")
+    along.set_ylabel("depth below the surface (mm)")
+    along.set_title(f"depth per pass, first {SECTION_REVS:g} revolutions")
+    for ax in (section, along):
+        ax.invert_yaxis()
+        ax.grid(alpha=0.3)
+    along.legend(loc="lower right", fontsize=8)
     fig.tight_layout()
     return fig
 

@@ -31,6 +31,9 @@ CAPTIONS = {
                   "marked intervals are where the tool is in the air and the chip breaks.",
     "thread_passes": "Thread passes: depth of cut per pass along the flank, with the vibration on each pass.",
     "thread_depths": "Thread pass depths: cumulative depth and depth of cut per pass.",
+    "thread_section": "Groove cross-section per pass on feedback: the tool tip sliding along the flank with "
+                      "its vibration, and each pass's depth along the groove against the pass before it "
+                      "(its returns above the previous turning points are where the chip breaks).",
 }
 
 CSS = """

@@ -15,7 +15,12 @@ helix angle psi of a pass is the spindle angle counted from where that pass's he
 passes start_z; psi is the groove coordinate, the same point of the groove on every pass:
 
     depth(psi) = d_k - A_k * (1 - w(D_k*psi/2pi + k*phase_shift/2pi))
-    x = major_radius - depth,   z = start_z - pitch*psi/2pi - depth*tan(infeed_angle)
+    x = surface(g) - depth,   z = g - depth*tan(infeed_angle),   g = start_z - pitch*psi/2pi
+
+with surface(g) = major_radius on a straight thread; on a taper thread (`taper`, diameter
+per length) the stock is a cone, major_radius at the face and growing by taper/2 per unit
+of length into the part (shrinking into a bore), so x follows the cone along the groove
+and both axes stay locked to the spindle angle; the depth stays radial below the cone.
 
 with w the vibration module's waveform (0 at the return point, 1 at the turning point),
 A_k = Q * (d_k - d_(k-1)) the radial amplitude and D_k = D + k*D_step. The vibration
@@ -26,16 +31,18 @@ least once per vibration. Spring passes run at full depth without vibration and 
 off what the last returns left standing.
 
 Every pass's helix passes start_z at the same spindle phase (the index, plus 360/starts
-per start), so all passes land in one groove; the tool idles at the pass start until
-the phase comes round, as a real lathe waits for the index pulse. z is locked to the
-spindle angle, not to time. The ramp onto the helix runs in the air before the face
-z=0; past end_z the tool pulls out on a retreating stroke into the relief groove.
-Each pass's x/z command is pre-compensated with the drive model (vibration.learn_correction)
-so the bridge's feedback, not only the command, holds lead, depth and flank offset.
+per start), so all passes land in one groove; z is locked to the spindle angle, not to
+time. Between passes the tool does not stop (ThreadCycle): it pulls out past end_z into
+the relief groove on a retreating stroke, returns in the air and lands on the next
+pass's running helix before the face z=0 at the servo instant the spindle phase allows.
+The whole cycle's x/z command is pre-compensated with the drive model
+(vibration.learn_correction) so the bridge's feedback, not only the command, holds lead,
+depth and flank offset.
 """
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from types import SimpleNamespace
 
@@ -58,7 +65,7 @@ from .vibration import COMPENSATION_TAIL, learn_correction, settled, waveform
 TWO_PI = 2.0 * math.pi
 JOINTS = ("x", "z")
 RETRACT_CLEARANCE = 1e-3  # m: radial clearance above the stock between passes
-SETTLE_TIME = 0.05  # s at rest before a pass: the drives settle after the rapid in
+SETTLE_TIME = 0.05  # s at rest before the cycle: the drives settle after the rapid to its start
 SPINDLE_SETTLE = 0.2  # s after the spindle reaches speed: its following error has died out
 CHECK_POINTS_PER_REV = 720  # groove grid of the chip-breaking check
 Q_MAX = 20.0  # the job schema's bound: the search for a working Q stops there
@@ -71,7 +78,8 @@ COMPENSATION_BAND = (0.05, 0.12)  # of the servo rate (50..120 Hz at 1 ms): abov
 # below the encoder quantisation noise a wider band would feed into the command's jerk
 LEAD_TIME = 0.06  # s at rest before the ramp: the band-limited compensation leads this far
 SETTLED_COUNTS = 0.25  # encoder counts: a command correction below this has settled
-MAX_JOIN_CYCLES = 4  # the ramp may take this many vibration cycles to catch the helix
+MAX_AIR_S = 3.0  # s: longest the search for a pass's join looks beyond its earliest start
+JOIN_ROOM_REVS = 0.25  # revolutions of helix, at least, between joining it and the face
 MAX_PASS_REVS = 2000  # spindle revolutions of one pass: checks and plans sample every one
 MAX_PASS_S = 600.0  # s of helix per pass: a longer pass is a mistyped pitch or speed
 
@@ -110,6 +118,7 @@ class ThreadSpec:
     spring_passes: int = 1
     starts: int = 1
     internal: bool = False
+    taper: float = 0.0  # diameter change per length into the part: external widens, internal narrows
     vibration: ThreadVibration | None = None
     origin: tuple[float, float] = (0.0, 0.0)
 
@@ -127,7 +136,7 @@ class ThreadSpec:
             depth=t.depth, spindle_speed=job.spindle_rpm,
             passes=len(t.depths) if t.depths else t.passes,
             depths=tuple(t.depths) if t.depths else None, infeed_angle=t.infeed_angle,
-            spring_passes=t.spring_passes, starts=t.starts, internal=t.internal,
+            spring_passes=t.spring_passes, starts=t.starts, internal=t.internal, taper=t.taper,
             vibration=None if vib is None else ThreadVibration(vib.D, vib.Q, vib.phase_shift, vib.D_step),
             origin=origin,
         )
@@ -141,6 +150,17 @@ class ThreadSpec:
     def radial(self) -> float:
         """x per unit of depth: -1 external, +1 internal (the bore grows)."""
         return 1.0 if self.internal else -1.0
+
+    def surface(self, z: np.ndarray | float) -> np.ndarray | float:
+        """Radius of the stock's surface (the major radius, a cone on a taper thread) at
+        program z: major_radius at the face, growing into an external part, shrinking into
+        a bore, by taper/2 per unit of length."""
+        return self.major_radius + self.radial * self.taper / 2 * z
+
+    @property
+    def clear_radius(self) -> float:
+        """Program x between passes: RETRACT_CLEARANCE outside the surface everywhere on the thread."""
+        return self.major_radius - self.radial * (RETRACT_CLEARANCE - self.taper / 2 * self.end_z)
 
     @property
     def lead_speed(self) -> float:
@@ -228,6 +248,14 @@ def _check_fields(spec: ThreadSpec) -> None:
         raise ThreadError(
             f"thread.depth: {_mm(spec.depth)} is not smaller than major_radius {_mm(spec.major_radius)}"
         )
+    if not (math.isfinite(spec.taper) and 0.0 <= spec.taper < 1.0):
+        raise ThreadError(f"thread.taper: must be >= 0 and < 1 (diameter per length), got {spec.taper!r}")
+    narrowest = min(spec.surface(spec.end_z), spec.major_radius)
+    if spec.depth >= narrowest:
+        raise ThreadError(
+            f"thread.taper: the thread narrows to radius {_mm(narrowest)} at end_z, not more than "
+            f"thread.depth {_mm(spec.depth)}"
+        )
     if not 0.0 <= spec.infeed_angle < math.pi / 2:
         raise ThreadError(
             f"thread.infeed_angle: {math.degrees(spec.infeed_angle):g} deg is outside 0..90 deg "
@@ -301,8 +329,8 @@ def _check_room(spec: ThreadSpec, machine: Machine) -> None:
         )
     x_axis, z_axis = machine.axis("x"), machine.axis("z")
     x0, z0 = spec.origin
-    x_clear = spec.major_radius - spec.radial * RETRACT_CLEARANCE
-    x_deep = spec.major_radius + spec.radial * spec.depth
+    x_clear = spec.clear_radius
+    x_deep = spec.surface(spec.end_z) + spec.radial * spec.depth
     for x in (x0 + x_clear, x0 + x_deep):
         if not x_axis.within_travel(x):
             raise ThreadError(
@@ -416,7 +444,8 @@ def _check_follow(spec: ThreadSpec, machine: Machine) -> None:
             continue
         rate = p.per_rev * omega / TWO_PI  # vibrations per second
         radial = p.amplitude * maxima * rate ** np.arange(1, 4)  # depth: |v|, |a|, |j|
-        for joint, need in (("x", radial), ("z", tan * radial + np.array([spec.lead_speed, 0.0, 0.0]))):
+        cone = np.array([spec.taper / 2 * spec.lead_speed, 0.0, 0.0])  # x follows the taper
+        for joint, need in (("x", radial + cone), ("z", tan * radial + np.array([spec.lead_speed, 0.0, 0.0]))):
             axis = machine.axis(joint)
             for order, (quantity, limit, unit) in enumerate((
                 ("velocity", axis.max_velocity, "m/s"), ("acceleration", axis.max_acceleration, "m/s^2"),
@@ -479,115 +508,181 @@ def _evaluate(trajectory: Trajectory, t: np.ndarray) -> np.ndarray:
     return np.array([trajectory.at_time(float(ti)) for ti in t]).transpose(1, 0, 2)
 
 
-class PassMotion:
-    """One synchronised pass of x and z, in local time from its start at rest.
+def _helix(spec: ThreadSpec, cut: Pass, psi: np.ndarray) -> np.ndarray:
+    """(3, len(psi), 2): axis x and z, their velocity and acceleration on the helix of a
+    pass with its vibration, at helix angles psi (the spindle turning at speed)."""
+    omega, s, tan = spec.spindle_speed, spec.direction, math.tan(spec.infeed_angle)
+    rate = cut.per_rev * omega / TWO_PI
+    w, w1, w2, _ = waveform(cut.per_rev * psi / TWO_PI + cut.phase)
+    depth = cut.depth - cut.amplitude * (1.0 - w)
+    ddepth, dddepth = cut.amplitude * rate * w1, cut.amplitude * rate**2 * w2
+    groove = spec.start_z + s * spec.pitch * psi / TWO_PI  # the groove's z under the tool
+    cone = spec.radial * spec.taper / 2 * s * spec.lead_speed  # x speed of the surface along it
+    out = np.empty((3, psi.size, 2))
+    out[0, :, 0] = spec.origin[0] + spec.surface(groove) + spec.radial * depth
+    out[0, :, 1] = spec.origin[1] + groove + s * depth * tan
+    out[1] = np.stack([cone + spec.radial * ddepth, s * (spec.lead_speed + tan * ddepth)], 1)
+    out[2] = np.stack([spec.radial * dddepth, s * tan * dddepth], 1)
+    return out
 
-    Timeline: LEAD_TIME at rest (room for the compensated command to lead);
-    a two-axis ruckig ramp from rest at the pass start onto the running helix with its
-    vibration, at the first servo instant it can reach it (position, velocity and
-    acceleration matched); the helix locked to the spindle angle; past end_z, at the first
-    servo instant the vibration retreats, the pull-out: x to the clearance radius and a
-    time-optimal z stop; ramps at RAMP_JERK_SHARE of the jerk limit. With a drive model,
-    `sample_all` returns the command whose simulated feedback is that motion
-    (vibration.learn_correction), and `duration` includes the command settling afterwards.
+
+Stretch = tuple[float, Callable[[np.ndarray], np.ndarray]]  # (cycle time it begins,
+# cycle times -> (3, len(t)): one axis's position, velocity and acceleration)
+
+
+def _held(position: float) -> Stretch:
+    return lambda t: np.stack([np.full(t.size, position), np.zeros(t.size), np.zeros(t.size)])
+
+
+def _moving(start: float, trajectory: Trajectory) -> Stretch:
+    return lambda t: _evaluate(trajectory, t - start)[:, :, 0]
+
+
+@dataclass
+class CutTiming:
+    """Where one pass of one start lies on the cycle's clock (s from the cycle start)."""
+
+    cut: Pass
+    start: int
+    theta_ref: float  # absolute spindle angle at which this pass's helix passes start_z
+    t_begin: float  # its air path begins (the previous pass leaves its helix)
+    t_join: float  # on the helix
+    t_out: float  # leaves the helix past end_z
+    retract: Trajectory  # x out to the clearance radius from t_out
+    stop: Trajectory  # z to rest from t_out
+
+    @property
+    def t_end(self) -> float:
+        return self.t_out + max(self.retract.duration, self.stop.duration)
+
+
+class ThreadCycle:
+    """Every pass of every start as one continuous motion of x and z, on a clock from the
+    cycle start (at rest at the clearance radius and start_z, the spindle at speed).
+
+    Between passes the tool never stops to wait. As a pass leaves its helix past end_z, x
+    pulls out to the clearance radius and z stops; z turns back as soon as x is out of the
+    stock (the rest of the retract overlaps the return) and runs one jerk-limited path
+    straight onto the next pass's running helix, timed to arrive there at the servo
+    instant the spindle phase allows: the wait for the phase is spent in the return.
+    x plunges to the pass depth in front of the face, on a path that ends on the helix.
+    Which helix revolution a pass joins is the earliest whose join lies before the face by
+    JOIN_ROOM_REVS and that the axes can reach with the tool never inside the stock over
+    the thread. With a drive model the whole cycle is compensated at once
+    (vibration.learn_correction): the command's lead-in of each pass runs while the tool is
+    still in the air, and only the cycle's start needs LEAD_TIME at rest.
     """
 
-    def __init__(self, spec: ThreadSpec, cut: Pass, psi0: float, machine: Machine, period: float,
+    def __init__(self, spec: ThreadSpec, machine: Machine, period: float, theta0: float,
                  drive: DriveModel | None = None) -> None:
-        self.spec, self.cut, self.machine, self.period = spec, cut, machine, period
-        self.psi0 = psi0  # helix angle at local time 0; the helix meets the pass start at psi = 0
-        self.start = self._position(cut.depth, 0.0)
+        self.spec, self.machine, self.period, self.theta0 = spec, machine, period, theta0
         self.t_lead = round(LEAD_TIME / period) * period
-        self.t_join, self.ramp = self._join()
-        self.t_out, self.retract, self.stop = self._exit()
-        t_end = self.t_out + max(self.retract.duration, self.stop.duration)
-        self.end = np.array([self.retract.at_time(self.retract.duration)[0][0],
-                             self.stop.at_time(self.stop.duration)[0][0]])
-        self.duration = math.ceil(t_end / period - 1e-9) * period
+        self.x_clear = spec.origin[0] + spec.clear_radius
+        self.tracks: list[list[Stretch]] = [[(0.0, _held(self.x_clear))],
+                                            [(0.0, _held(spec.origin[1] + spec.start_z))]]
+        self.cuts: list[CutTiming] = []
+        for cut in _passes(spec):
+            for start in range(spec.starts):
+                self._add(cut, start)
+        self.end = np.array([self.cuts[-1].retract.at_time(self.cuts[-1].retract.duration)[0][0],
+                             self.cuts[-1].stop.at_time(self.cuts[-1].stop.duration)[0][0]])
+        self.duration = math.ceil(self.cuts[-1].t_end / period - 1e-9) * period
         self._correction: np.ndarray | None = None
         self._cache: tuple[tuple[int, float, float], np.ndarray] | None = None
         if drive is not None:
             self._compensate(drive)
 
-    def _position(self, depth: np.ndarray | float, psi: np.ndarray | float) -> np.ndarray:
-        """Axis x and z at a depth and helix angle."""
-        spec = self.spec
-        x = spec.major_radius + spec.radial * depth
-        z = spec.start_z + spec.direction * (spec.pitch * psi / TWO_PI + depth * math.tan(spec.infeed_angle))
-        return np.array([x + spec.origin[0], z + spec.origin[1]])
+    def psi(self, theta_ref: float, t: np.ndarray | float) -> np.ndarray | float:
+        """Helix angle at cycle time t of the helix that passes start_z at theta_ref."""
+        return self.theta0 + self.spec.spindle_speed * t - theta_ref
 
-    def helix(self, t: np.ndarray) -> np.ndarray:
-        """(3, len(t), 2): x and z on the helix with the vibration, at local times t."""
-        spec, cut, omega = self.spec, self.cut, self.spec.spindle_speed
-        psi = self.psi0 + omega * t
-        rate = cut.per_rev * omega / TWO_PI
-        w, w1, w2, _ = waveform(cut.per_rev * psi / TWO_PI + cut.phase)
-        depth = cut.depth - cut.amplitude * (1.0 - w)
-        ddepth, dddepth = cut.amplitude * rate * w1, cut.amplitude * rate**2 * w2
-        s, tan = spec.direction, math.tan(spec.infeed_angle)
-        out = np.empty((3, t.size, 2))
-        out[0] = self._position(depth, psi).T
-        out[1] = np.stack([spec.radial * ddepth, s * (spec.lead_speed + tan * ddepth)], 1)
-        out[2] = np.stack([spec.radial * dddepth, s * tan * dddepth], 1)
-        return out
+    def _state(self, cut: Pass, theta_ref: float, t: float) -> np.ndarray:
+        return _helix(self.spec, cut, np.array([self.psi(theta_ref, t)]))[:, 0, :].T  # rows x, z
 
-    def _state(self, t: float) -> np.ndarray:
-        return self.helix(np.array([t]))[:, 0, :].T  # rows x, z; columns p, v, a
-
-    def _join(self) -> tuple[float, Trajectory]:
-        """The first servo instant both axes can reach the running helix from rest."""
-        rest = np.stack([self.start, np.zeros(2), np.zeros(2)], 1)
-        cycle = TWO_PI / (max(self.cut.per_rev, 1.0) * self.spec.spindle_speed)
-        horizon = _ramp(self.spec.lead_speed, self.machine).duration + MAX_JOIN_CYCLES * cycle
-        for k in range(1, math.ceil(horizon / self.period) + 1):
-            t = self.t_lead + k * self.period
-            target = self._state(t)
-            fastest = _reach(rest, target, self.machine)
-            if fastest is None or fastest.duration > k * self.period + 1e-12:
+    def _add(self, cut: Pass, start: int) -> None:
+        spec, period = self.spec, self.period
+        s, x0, z0 = spec.direction, spec.origin[0], spec.origin[1]
+        if self.cuts:
+            last = self.cuts[-1]
+            t_begin, x_free = last.t_out, last.t_out + last.retract.duration
+            out = np.arange(math.ceil(last.retract.duration / period) + 1) * period
+            depth = spec.radial * (_evaluate(last.retract, out)[0, :, 0] - x0 - spec.surface(spec.end_z))
+            t_clear = last.t_out + float(out[np.flatnonzero(depth <= 0.0)[0]])
+            t_go = math.ceil(max(t_clear, last.t_out + last.stop.duration) / period - 1e-9) * period
+            z_from = last.stop.at_time(last.stop.duration)[0][0]
+        else:
+            t_begin, x_free = 0.0, self.t_lead
+            t_go, z_from = self.t_lead, z0 + spec.start_z
+        phase = TWO_PI * start / spec.starts
+        psi_room = TWO_PI * (spec.start_z / spec.pitch - JOIN_ROOM_REVS)  # the latest join before the face
+        z_rest = np.array([[z_from, 0.0, 0.0]])
+        x_rest = np.array([[self.x_clear, 0.0, 0.0]])
+        first = math.ceil(t_go / period - 1e-9) + 1
+        for k in range(first, first + math.ceil(MAX_AIR_S / period)):
+            t_join = k * period
+            theta_ref = phase + TWO_PI * math.ceil(
+                (self.theta0 + spec.spindle_speed * t_join - psi_room - phase) / TWO_PI)
+            target = self._state(cut, theta_ref, t_join)
+            fastest = _reach(z_rest, target[1:], self.machine, joints=("z",))
+            if fastest is None or fastest.duration > t_join - t_go + 1e-12:
                 continue
-            ramp = _reach(rest, target, self.machine, duration=k * self.period)
-            if ramp is not None and abs(ramp.duration - k * self.period) < 1e-9:
-                return t, ramp
+            back = _reach(z_rest, target[1:], self.machine, duration=t_join - t_go, joints=("z",))
+            plunge = _reach(x_rest, target[:1], self.machine, joints=("x",))
+            if (back is None or abs(back.duration - (t_join - t_go)) > 1e-9 or plunge is None
+                    or t_join - plunge.duration < x_free - 1e-12):
+                continue
+            tried = [[(t_join - plunge.duration, _moving(t_join - plunge.duration, plunge))],
+                     [(t_go, _moving(t_go, back))]]
+            grid = np.arange(math.floor(t_begin / period), k) * period
+            x, z = (self._sample(track + extra, grid)[0] for track, extra in zip(self.tracks, tried))
+            depth = spec.radial * (x - x0 - spec.surface(z - z0))
+            over_stock = (s * (z - z0) >= 0.0) & (s * (z - z0) <= s * spec.end_z)
+            if np.any(over_stock & (depth > 0.0)):
+                continue
+            for j in range(2):
+                self.tracks[j] += tried[j] + [(t_join, lambda t, c=cut, r=theta_ref, j=j:
+                                               _helix(spec, c, self.psi(r, t))[:, :, j])]
+            t_out, retract, stop = self._exit(cut, theta_ref, t_join)
+            self.tracks[0].append((t_out, _moving(t_out, retract)))
+            self.tracks[1].append((t_out, _moving(t_out, stop)))
+            self.cuts.append(CutTiming(cut, start, theta_ref, t_begin, t_join, t_out, retract, stop))
+            return
         raise ThreadError(
-            f"thread.start_z: the axes cannot ramp onto the helix of pass {self.cut.index + 1} "
-            f"within {horizon:.3g} s"
+            f"thread.start_z: the axes cannot reach the helix of pass {cut.index + 1} in front of the "
+            f"face within {MAX_AIR_S:g} s"
         )
 
-    def _exit(self) -> tuple[float, Trajectory, Trajectory]:
+    def _exit(self, cut: Pass, theta_ref: float, t_join: float) -> tuple[float, Trajectory, Trajectory]:
         """Leave the helix past end_z when the vibration retreats: x out to the clearance
         radius, z to a time-optimal stop."""
-        spec, omega = self.spec, self.spec.spindle_speed
+        spec, period = self.spec, self.period
         psi_end = TWO_PI * spec.direction * (spec.end_z - spec.start_z) / spec.pitch
-        first = math.ceil((psi_end - self.psi0) / omega / self.period - 1e-9)
-        cycle = TWO_PI / (omega * self.cut.per_rev) if self.cut.per_rev else self.period
-        t = (first + np.arange(math.ceil(cycle / self.period) + 1)) * self.period
-        depth_rate = spec.radial * self.helix(t)[1][:, 0]
-        retreating = np.flatnonzero(depth_rate <= 1e-12)
-        t_out = float(t[retreating[0]])
-        state = self._state(t_out)
-        x_clear = spec.origin[0] + spec.major_radius - spec.radial * RETRACT_CLEARANCE
-        retract = _reach(state[:1], np.array([[x_clear, 0.0, 0.0]]), self.machine, joints=("x",))
+        t_end = (psi_end + theta_ref - self.theta0) / spec.spindle_speed
+        first = max(math.ceil(t_end / period - 1e-9), round(t_join / period) + 1)
+        cycle = TWO_PI / (spec.spindle_speed * cut.per_rev) if cut.per_rev else period
+        t = (first + np.arange(math.ceil(cycle / period) + 1)) * period
+        depth_rate = spec.radial * _helix(spec, cut, self.psi(theta_ref, t))[1][:, 0]
+        t_out = float(t[np.flatnonzero(depth_rate <= 1e-12)[0]])
+        state = self._state(cut, theta_ref, t_out)
+        retract = _reach(state[:1], np.array([[self.x_clear, 0.0, 0.0]]), self.machine, joints=("x",))
         z = self.machine.axis("z")
         stop = velocity_trajectory(list(state[1, :1]), list(state[1, 1:2]), list(state[1, 2:]), [0.0],
                                    [z.max_velocity], [z.max_acceleration], [RAMP_JERK_SHARE * z.max_jerk])
         return t_out, retract, stop
 
+    @staticmethod
+    def _sample(track: list[Stretch], t: np.ndarray) -> np.ndarray:
+        """(3, len(t)) of one axis: each stretch from its start until the next begins."""
+        out = np.empty((3, t.size))
+        which = np.searchsorted([begin for begin, _ in track], t, side="right") - 1
+        for i in np.unique(which):
+            sel = which == i
+            out[:, sel] = track[max(int(i), 0)][1](t[sel])
+        return out
+
     def ideal(self, t: np.ndarray) -> np.ndarray:
         """(3, len(t), 2): the motion itself (what the feedback should do)."""
-        out = np.zeros((3, t.size, 2))
-        out[0] = self.start
-        ramp = (t >= self.t_lead) & (t < self.t_join)
-        wave = (t >= self.t_join) & (t < self.t_out)
-        tail = t >= self.t_out
-        if ramp.any():
-            out[:, ramp] = _evaluate(self.ramp, t[ramp] - self.t_lead)
-        if wave.any():
-            out[:, wave] = self.helix(t[wave])
-        if tail.any():
-            local = t[tail] - self.t_out
-            out[:, tail, :1] = _evaluate(self.retract, local)
-            out[:, tail, 1:] = _evaluate(self.stop, local)
-        return out
+        return np.stack([self._sample(track, t) for track in self.tracks], 2)
 
     def _compensate(self, drive: DriveModel) -> None:
         n = math.ceil((self.duration + COMPENSATION_TAIL) / self.period) + 1
@@ -600,7 +695,7 @@ class PassMotion:
         self.duration = (self._correction.shape[1] - 1) * self.period
 
     def sample_all(self, t: np.ndarray) -> np.ndarray:
-        """(3, len(t), 2): the command at local times t (cached: x and z ask alike)."""
+        """(3, len(t), 2): the command at cycle times t (cached: x and z ask alike)."""
         key = (t.size, float(t[0]), float(t[-1])) if t.size else (0, 0.0, 0.0)
         if self._cache is not None and self._cache[0] == key:
             return self._cache[1]
@@ -626,63 +721,43 @@ def plan_thread(builder: PlanBuilder, spec: ThreadSpec, servo_period: float = 1e
     """Append the whole thread cycle to the builder; returns one JSON-ready dict per pass.
 
     Spindle to speed; the tool to the cycle start (clearance radius, start_z; from wherever
-    it is, clear of the stock); per pass and start: rapid z to the pass start, rapid x in
-    along the infeed line, idle until the spindle phase of the groove, the synchronised
-    pass (PassMotion, drive-compensated unless `compensate` is False), pull-out; finally
-    back to the cycle start. Events: "thread_pass" as each pass begins, "sync" where it
-    locks onto the helix.
+    it is, clear of the stock); every pass and start as one ThreadCycle (drive-compensated
+    unless `compensate` is False); finally back to the cycle start. Events: "thread_pass"
+    as each pass's air path begins, "sync" where it is on its helix.
 
     Raises:
-        ThreadError: check_thread's rejections (before anything is added), or a ramp that
-            would not end before the face (the builder is then half-built: discard it).
+        ThreadError: check_thread's rejections (before anything is added), or a pass whose
+            helix cannot be reached before the face (the builder is then half-built: discard it).
     """
     machine = builder.machine
     check_thread(spec, machine)
-    omega, s, r = spec.spindle_speed, spec.direction, spec.radial
     x_origin, z_origin = spec.origin
     drive = DriveModel(machine, servo_period, joints=JOINTS) if compensate else None
     spindle = builder.timelines[SPINDLE]
-    builder.spindle(omega)
-    builder.rapid({"x": x_origin + spec.major_radius - r * RETRACT_CLEARANCE, "z": z_origin + spec.start_z})
-    lead_in = round(LEAD_TIME / servo_period) * servo_period + _ramp(spec.lead_speed, machine).duration / 2
+    builder.spindle(spec.spindle_speed)
+    builder.rapid({"x": x_origin + spec.clear_radius, "z": z_origin + spec.start_z})
+    t_ready = max(builder.end_time(list(JOINTS)) + SETTLE_TIME, builder.spindle_ready + SPINDLE_SETTLE)
+    t0 = math.ceil(t_ready / servo_period - 1e-9) * servo_period
+    cycle = ThreadCycle(spec, machine, servo_period, spindle.position_at(t0), drive)
+    for j, joint in enumerate(JOINTS):
+        builder.timelines[joint].add(Piece(t0, cycle.duration, cycle.sampler(j)), cycle.end[j])
     report = []
-    for cut in _passes(spec):
-        for start in range(spec.starts):
-            x0 = x_origin + spec.major_radius + r * cut.depth
-            z0 = z_origin + spec.start_z + s * cut.depth * math.tan(spec.infeed_angle)
-            t_begin = builder.end_time(list(JOINTS))
-            t_z = builder.rapid({"z": z0})  # at the clearance radius
-            t_in = builder.rapid({"x": x0}, start=max(t_z, builder.end_time(["x"])))
-            # idle until the groove's spindle phase, so that the helix meets the pass start there
-            t_ready = max(t_in + SETTLE_TIME, builder.spindle_ready + SPINDLE_SETTLE)
-            phase = TWO_PI * start / spec.starts
-            theta_min = spindle.position_at(t_ready) + omega * lead_in
-            theta_ref = phase + TWO_PI * math.ceil((theta_min - phase) / TWO_PI)
-            t_ref = t_ready + (theta_ref - spindle.position_at(t_ready)) / omega
-            t0 = math.ceil((t_ref - lead_in) / servo_period - 1e-9) * servo_period
-            motion = PassMotion(spec, cut, spindle.position_at(t0) - theta_ref, machine, servo_period, drive)
-            z_join = motion.ideal(np.array([motion.t_join]))[0, 0, 1] - z_origin  # program z
-            if s * z_join > 0.0:
-                raise ThreadError(
-                    f"thread.start_z: pass {cut.index + 1} locks onto the helix at z = {_mm(z_join)}, "
-                    "past the face z=0; start further out"
-                )
-            for j, joint in enumerate(JOINTS):
-                builder.timelines[joint].add(Piece(t0, motion.duration, motion.sampler(j)), motion.end[j])
-            info = {
-                "index": cut.index, "start": start, "spring": cut.spring,
-                "depth_mm": to_mm(cut.depth), "doc_mm": to_mm(cut.doc),
-                "amplitude_mm": to_mm(cut.amplitude),
-                "vibration_per_rev": cut.per_rev or None,
-                "vibration_phase_deg": cut.phase * 360.0 if cut.amplitude else None,
-                "spindle_phase_deg": math.degrees(phase),
-                "t_start": float(t_begin), "t_sync": t0 + motion.t_join, "t_end": t0 + motion.duration,
-            }
-            builder.event(t_begin, "thread_pass", **{k: info[k] for k in (
-                "index", "start", "spring", "depth_mm", "doc_mm", "amplitude_mm",
-                "vibration_per_rev", "vibration_phase_deg")})
-            builder.event(info["t_sync"], "sync", index=cut.index, start=start,
-                          spindle_phase_deg=info["spindle_phase_deg"])
-            report.append(info)
+    for c in cycle.cuts:
+        cut = c.cut
+        info = {
+            "index": cut.index, "start": c.start, "spring": cut.spring,
+            "depth_mm": to_mm(cut.depth), "doc_mm": to_mm(cut.doc),
+            "amplitude_mm": to_mm(cut.amplitude),
+            "vibration_per_rev": cut.per_rev or None,
+            "vibration_phase_deg": cut.phase * 360.0 if cut.amplitude else None,
+            "spindle_phase_deg": math.degrees(TWO_PI * c.start / spec.starts),
+            "t_start": t0 + c.t_begin, "t_sync": t0 + c.t_join, "t_end": t0 + c.t_end,
+        }
+        builder.event(info["t_start"], "thread_pass", **{k: info[k] for k in (
+            "index", "start", "spring", "depth_mm", "doc_mm", "amplitude_mm",
+            "vibration_per_rev", "vibration_phase_deg")})
+        builder.event(info["t_sync"], "sync", index=cut.index, start=c.start,
+                      spindle_phase_deg=info["spindle_phase_deg"])
+        report.append(info)
     builder.rapid({"z": z_origin + spec.start_z})
     return report

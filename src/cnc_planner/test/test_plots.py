@@ -37,7 +37,13 @@ VIBRATION = {
     "vibration": {"D": 1.5, "Q": 1.2},
 }
 
-JOBS = {"drill": DRILL, "turn": TURN, "vibration": VIBRATION}
+THREAD = {
+    "schema": "cnc_job/1", "job_id": "thread-test", "kind": "thread", "machine": "lathe", "spindle_rpm": 600,
+    "thread": {"start_z": 3.0, "end_z": -6.0, "major_radius": 6.0, "pitch": 1.5, "depth": 0.9, "passes": 3},
+    "vibration": {"D": 1.5, "Q": 1.3, "phase_shift": 180},
+}
+
+JOBS = {"drill": DRILL, "turn": TURN, "vibration": VIBRATION, "thread": THREAD}
 
 
 @functools.cache
@@ -69,6 +75,7 @@ def assert_pictures(paths: list, expected: list[str]) -> None:
     ("drill", ["following_error.png", "drill_xz.png", "drill_timing.png"]),
     ("turn", ["following_error.png", "turn_passes.png"]),
     ("vibration", ["following_error.png", "aircut.png", "aircut_map.png"]),
+    ("thread", ["following_error.png", "thread_passes.png", "thread_section.png"]),
 ])
 def test_each_job_kind_gets_its_figures(name, expected, tmp_path):
     run = synthetic_run(name)

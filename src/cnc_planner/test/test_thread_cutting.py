@@ -56,7 +56,7 @@ def run(spec: ThreadSpec, machine=LATHE, compensate: bool = True):
     feedback = DriveModel(machine, T).simulate(*command)[0]
     thread = dict(JOB["thread"], start_z=spec.start_z * 1e3, end_z=spec.end_z * 1e3,
                   major_radius=spec.major_radius * 1e3, pitch=spec.pitch * 1e3, depth=spec.depth * 1e3,
-                  starts=spec.starts, internal=spec.internal)
+                  starts=spec.starts, internal=spec.internal, taper=spec.taper)
     report = analyze_thread(t, feedback[:, 0], feedback[:, 1], feedback[:, 2], thread)
     return dict(plan=result, info=info, t=t, command=command, feedback=feedback, report=report)
 
@@ -221,8 +221,30 @@ def test_internal_two_start_thread():
     assert [p["start"] for p in report["passes"]] == [0, 1] * 4
     assert report["chips_broken"] and report["full_depth"] and report["helix_residual_mm"] < 0.01
     x = result["command"][0][:, 0]
-    # the bore grows with depth: x from the clearance inside it to the full depth outside
-    assert x.min() == pytest.approx(7e-3, abs=1e-9) and x.max() == pytest.approx(8.6e-3, abs=1e-6)
+    # the bore grows with depth: x from the clearance inside it to the full depth outside; the
+    # compensated command leads the retract straight into the next plunge and passes the
+    # clearance radius (away from the stock) by less than a micrometre
+    assert x.min() == pytest.approx(7e-3, abs=1e-6) and x.min() <= 7e-3
+    assert x.max() == pytest.approx(8.6e-3, abs=1e-6)
+
+
+@pytest.mark.parametrize("internal, major_mm", [(False, 6.0), (True, 4.5)])
+def test_taper_thread_follows_the_cone_on_feedback(internal, major_mm):
+    """1:16 taper: x moves with the groove by taper/2 per unit of z, hand-computed at the face
+    and at end_z on the full-depth pass; the feedback is full depth below the cone."""
+    spec = dataclasses.replace(SPEC, taper=1 / 16, internal=internal, major_radius=mm(major_mm))
+    result = run(spec)
+    report, info = result["report"], result["info"]
+    assert report["chips_broken"] and report["full_depth"] and report["helix_residual_mm"] < 0.01
+    spring = info[-1]
+    t = np.arange(math.ceil(spring["t_sync"] / T), math.floor(spring["t_end"] / T)) * T
+    x, z, _ = result["plan"].sample(t)[0].T
+    tan, radial = math.tan(SPEC.infeed_angle), 1.0 if internal else -1.0
+    g = z + 1.07e-3 * tan  # the groove's z under the tip at full depth (feed towards -z)
+    on_thread = (g <= 0.0) & (g >= SPEC.end_z)
+    assert on_thread.sum() > 800
+    expected = mm(major_mm) + radial * (g / 32.0 + 1.07e-3)  # 1:16 on the diameter = 1:32 on x
+    assert np.abs(x[on_thread] - expected[on_thread]).max() < 1e-6
 
 
 BAD = [
@@ -245,6 +267,8 @@ BAD = [
     ({"vibration": ThreadVibration(0.5, 1.2, math.pi)}, "vibration.D", "raise D"),
     ({"spindle_speed": rpm(1000)}, "vibration.D", "x axis cannot follow"),
     ({"spring_passes": 0}, "thread.spring_passes", ">= 1"),
+    ({"taper": -0.1}, "thread.taper", ">= 0"),
+    ({"taper": 0.9, "internal": True}, "thread.taper", "narrows"),
     ({"depths": (0.3e-3, 0.7e-3, 1.07e-3), "passes": 3}, "thread.depths", "grows"),
     ({"spindle_speed": rpm(7000), "vibration": None}, "spindle_rpm", "spindle's"),
 ]

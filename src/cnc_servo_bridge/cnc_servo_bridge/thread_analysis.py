@@ -1,7 +1,9 @@
 """Thread-cutting analysis from sampled positions only (a bag's commands or feedback).
 
 A thread is judged in its groove coordinates. The tool's radial depth below the stock
-surface is read from x; its groove coordinate g is the axial position of the nominal
+surface (a cylinder, or on a taper thread a cone: radius major_radius at the face,
+changing by taper/2 per unit of length, growing into an external part and shrinking into
+a bore) is read from x and z; its groove coordinate g is the axial position of the nominal
 groove line under it, g = z - (depth * tan(infeed_angle)) along the feed, so moving along
 the infeed line (the flank) leaves g unchanged. On a synchronised pass g advances exactly
 one lead per spindle revolution; that is how passes are found without any planner event.
@@ -56,6 +58,7 @@ class Groove:
     infeed_angle: float
     starts: int
     internal: bool
+    taper: float = 0.0  # diameter per length into the part: the surface is a cone
 
     @classmethod
     def from_job(cls, thread: dict) -> Groove:
@@ -69,6 +72,7 @@ class Groove:
             infeed_angle=deg(thread.get("infeed_angle", 29.5)),
             starts=int(thread.get("starts", 1)),
             internal=bool(thread.get("internal", False)),
+            taper=float(thread.get("taper", 0.0)),
         )
 
     @property
@@ -187,24 +191,40 @@ def _vibration(psi: np.ndarray, depth: np.ndarray) -> tuple[float, float, float]
     return per_rev, math.degrees(math.atan2(b, -a)) % 360.0, amplitude
 
 
-def analyze_thread(
-    t: np.ndarray, x: np.ndarray, z: np.ndarray, spindle: np.ndarray, thread: dict
-) -> dict:
-    """Judge a cut thread from samples in time order: t (s), x (tool radius, m), z (m) and
-    the spindle angle (rad), commanded or measured; thread is the job's thread block
-    (mm, deg; only the geometry is read). Returns a JSON-ready dict in mm: per pass depth,
-    depth of cut, longest chip, air-cut share, vibration and helix residual; over the whole
-    thread the longest chip of the cutting passes, the depth error, the helix residual and
-    the measured infeed angle."""
+@dataclass(frozen=True)
+class Reading:
+    """Samples in groove coordinates: depth below the surface, groove coordinate g, the
+    synchronised passes (index ranges) and, on them, the tool's axial offset from the
+    nominal helix (depth*tan(infeed_angle) on a perfect cut)."""
+
+    groove: Groove
+    t: np.ndarray
+    theta: np.ndarray
+    depth: np.ndarray
+    g: np.ndarray
+    segments: list[tuple[int, int]]
+    inside: np.ndarray  # on a synchronised pass between the face and end_z
+    helix: np.ndarray  # g - lead*theta/2pi
+    reference: float  # the helix's phase (m of g at theta = 0), fitted over all passes
+    residual: np.ndarray  # helix less its phase fitted over all passes, wrapped to a pitch
+    offset: np.ndarray
+
+
+def read_thread(t: np.ndarray, x: np.ndarray, z: np.ndarray, spindle: np.ndarray, thread: dict) -> Reading:
+    """Samples (as analyze_thread takes them) in groove coordinates.
+
+    Raises:
+        ValueError: no synchronised pass runs through the thread.
+    """
     groove = Groove.from_job(thread)
     t, x, z = (np.asarray(a, dtype=float) for a in (t, x, z))
     theta = np.unwrap(np.asarray(spindle, dtype=float))
     s, lead, tan = groove.direction, groove.lead, math.tan(groove.infeed_angle)
-    depth = groove.radial * (x - groove.major_radius)
+    # depth below the cone's surface, whose radius major + radial*taper/2*g depends on the
+    # groove coordinate g = z - s*depth*tan under the tool: solved for depth
+    half = groove.taper / 2
+    depth = (groove.radial * (x - groove.major_radius) - half * z) / (1.0 - s * tan * half)
     g = z - s * depth * tan
-    grid = groove.grid()
-    psi = s * (grid - groove.start_z) / lead  # revolutions along the helix from start_z
-    full = s * grid <= s * (groove.end_z - s * lead) + 1e-12  # face to one lead before end_z
     moves = np.abs(np.diff(z))
     quantum = float(np.min(moves[moves > 0])) if np.any(moves > 0) else 0.0  # the z encoder's count, at most
     segments = _sync_segments(theta, g, groove, quantum)
@@ -221,6 +241,42 @@ def analyze_thread(
     reference = pitch / TWO_PI * float(np.angle(np.mean(np.exp(1j * TWO_PI * helix[inside] / pitch))))
     residual = _wrap(helix - reference, pitch)
     offset = residual + s * depth * tan  # the tool's axial offset from the nominal helix
+    return Reading(groove, t, theta, depth, g, segments, inside, helix, reference, residual, offset)
+
+
+def cross_section(t: np.ndarray, x: np.ndarray, z: np.ndarray, spindle: np.ndarray, thread: dict) -> list[dict]:
+    """The groove's cross-section per synchronised pass: where the tool tip went in the
+    plane of the thread form (axial offset from the nominal helix along the feed, and depth
+    below the surface, both mm; and where along the groove, in revolutions from the face)
+    between the face and end_z, in time order; its vibration
+    runs along the flank, each pass from above the previous pass's deepest point."""
+    r = read_thread(t, x, z, spindle, thread)
+    s = r.groove.direction
+    out = []
+    for i0, i1 in r.segments:
+        sel = np.arange(i0, i1 + 1)[r.inside[i0 : i1 + 1]]
+        out.append({"index": len(out), "offset_mm": to_mm(s * r.offset[sel]), "depth_mm": to_mm(r.depth[sel]),
+                    "groove_revs": s * r.g[sel] / r.groove.lead})
+    return out
+
+
+def analyze_thread(
+    t: np.ndarray, x: np.ndarray, z: np.ndarray, spindle: np.ndarray, thread: dict
+) -> dict:
+    """Judge a cut thread from samples in time order: t (s), x (tool radius, m), z (m) and
+    the spindle angle (rad), commanded or measured; thread is the job's thread block
+    (mm, deg; only the geometry is read). Returns a JSON-ready dict in mm: per pass depth,
+    depth of cut, longest chip, air-cut share, vibration and helix residual; over the whole
+    thread the longest chip of the cutting passes, the depth error, the helix residual and
+    the measured infeed angle."""
+    r = read_thread(t, x, z, spindle, thread)
+    groove, t, depth, g, segments, inside = r.groove, r.t, r.depth, r.g, r.segments, r.inside
+    helix, reference, residual, offset = r.helix, r.reference, r.residual, r.offset
+    s, lead = groove.direction, groove.lead
+    pitch = lead / groove.starts
+    grid = groove.grid()
+    psi = s * (grid - groove.start_z) / lead  # revolutions along the helix from start_z
+    full = s * grid <= s * (groove.end_z - s * lead) + 1e-12  # face to one lead before end_z
     slope = np.polyfit(s * depth[inside], offset[inside], 1)[0]
 
     # which groove: where each pass's helix lies, in 1/starts of a lead from the first pass's

@@ -463,12 +463,9 @@ def _xy_move(machine: Machine, p0: tuple[float, float], p1: tuple[float, float],
     ``shares`` of the velocity, acceleration and jerk limits leave headroom for the drive
     compensation (_xy_headroom)."""
     target = dict(zip(XY, p1))
-    joints = [j for j, a, b in zip(XY, p0, p1) if abs(a - b) > 1e-12]
-    if not joints:
+    move, joints = _xy_limited(machine, p0, p1, shares)
+    if move is None:
         return _XYMove(target, None, math.inf, 0.0)
-    limits = [axis_limits(machine.axes[j]) for j in joints]
-    limits = [Limits(lim.velocity * shares[0], lim.acceleration * shares[1], lim.jerk * shares[2]) for lim in limits]
-    move = point_to_point([dict(zip(XY, p0))[j] for j in joints], [target[j] for j in joints], limits)
     ts = np.arange(0.0, move.duration + FINE_STEP, FINE_STEP)
     p = move.sample_all(np.minimum(ts, move.duration))[0]
     start = np.array([dict(zip(XY, p0))[j] for j in joints])
@@ -480,6 +477,19 @@ def _xy_move(machine: Machine, p0: tuple[float, float], p1: tuple[float, float],
     leave = max(ts[left[0]] - FINE_STEP, 0.0) if len(left) else math.inf
     arrive = ts[away[-1]] + FINE_STEP if len(away) else 0.0
     return _XYMove(target, move, leave, arrive, tuple(joints))
+
+
+def _xy_limited(machine: Machine, p0: tuple[float, float], p1: tuple[float, float],
+                shares: tuple[float, float, float]) -> tuple[RuckigMove | None, list[str]]:
+    """The ruckig move of S1 at shares of the velocity, acceleration and jerk limits, and
+    the axes it moves (None and [] for no move)."""
+    joints = [j for j, a, b in zip(XY, p0, p1) if abs(a - b) > 1e-12]
+    if not joints:
+        return None, []
+    limits = [axis_limits(machine.axes[j]) for j in joints]
+    limits = [Limits(lim.velocity * shares[0], lim.acceleration * shares[1], lim.jerk * shares[2]) for lim in limits]
+    start, target = dict(zip(XY, p0)), dict(zip(XY, p1))
+    return point_to_point([start[j] for j in joints], [target[j] for j in joints], limits), joints
 
 
 def _xy_headroom(machine: Machine, period: float, xy: _XYMove, p0: tuple[float, float],
@@ -495,9 +505,8 @@ def _xy_headroom(machine: Machine, period: float, xy: _XYMove, p0: tuple[float, 
     velocity = 1.0
     for _ in range(XY_VELOCITY_ROUNDS):
         grid = [(velocity, a, j) for a in XY_ACCELERATION_SHARES for j in XY_JERK_SHARES]
-        moves = sorted(((_xy_move(machine, p0, p1, tol, shares), shares) for shares in grid),
-                       key=lambda m: m[0].duration)
-        for candidate, shares in moves[:XY_HEADROOM_TRIES]:
+        for shares in sorted(grid, key=lambda shares: _xy_limited(machine, p0, p1, shares)[0].duration)[:XY_HEADROOM_TRIES]:
+            candidate = _xy_move(machine, p0, p1, tol, shares)
             correction, (over_v, over_a) = _xy_correction(machine, period, candidate)
             if over_v > XY_HEADROOM_MARGIN:
                 velocity *= XY_HEADROOM_AIM / over_v

@@ -5,7 +5,8 @@ angle: every cutting pass breaks its chips within one revolution and the last pa
 full depth below the cone everywhere from the face to end_z. Judged as a cylinder the same
 feedback is 0.37 mm off at end_z (1:16 over 14 mm on the diameter is 0.44 mm on it, half
 on the radius and ~0.06 mm of that taken by the flank offset), so the depth is really
-measured along the taper.
+measured along the taper. The same bore cut straight (taper 0) is the internal straight
+thread, judged the same way.
 """
 from __future__ import annotations
 
@@ -32,7 +33,8 @@ def cut(tmp_path, name: str, **thread) -> tuple[dict, dict, object]:
     return doc["thread"], load_report(tmp_path / name)["thread"], read_run(tmp_path / name / "bag")
 
 
-def check_taper_thread(block: dict, thread: dict, run) -> None:
+def check_thread(thread: dict) -> None:
+    """Chips broken in every cutting pass, full depth without overcut, one helix."""
     assert thread["synchronised_passes"] == 7 and thread["cutting_passes"] == 6
     for p in thread["passes"]:
         if p["doc_mm"] > 0.05:
@@ -40,6 +42,10 @@ def check_taper_thread(block: dict, thread: dict, run) -> None:
     assert thread["full_depth"] and thread["depth_error_mm"] <= 0.02 and thread["overcut_mm"] <= 0.02
     assert thread["helix_residual_mm"] < 0.01
     assert thread["infeed_angle_deg"] == pytest.approx(29.5, abs=0.5)
+
+
+def check_taper_thread(block: dict, thread: dict, run) -> None:
+    check_thread(thread)
     columns = [run.column(j) for j in ("x", "z", "spindle")]
     x, z, spindle = (run.feedback[:, c] for c in columns)
     as_cylinder = analyze_thread(run.feedback_t, x, z, spindle, {**block, "taper": 0.0})
@@ -60,3 +66,8 @@ def test_internal_npt_half_inch_taper_thread(tmp_path):
     assert inside.sum() > 1000
     g = z[inside] + 1.45 * math.tan(math.radians(29.5))
     assert np.all(x[inside] <= 9.2 + 1.45 + g / 32 + 0.002)
+
+
+def test_internal_straight_thread(tmp_path):
+    _, thread, _ = cut(tmp_path, "straight-internal", major_radius=9.2, internal=True, taper=0.0)
+    check_thread(thread)

@@ -51,6 +51,7 @@ depth, rapid up to R + RETURN_CLEARANCE, each move after the previous one ends.
 """
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, replace
 from functools import lru_cache
@@ -82,6 +83,7 @@ XY_FIXED_PERIODS = 4    # of which uncorrected: the compensated command leads by
 XY_COMMAND_LEAD = XY_LEAD_PERIODS - XY_FIXED_PERIODS + 1  # periods: from its last rest sample
 XY_SETTLED_COUNTS = 0.25  # encoder counts: an X/Y correction below this has settled
 BOTTOM_ROUNDS = 6  # drive-model rounds placing the Z command's turning point at a hole's bottom
+BOTTOM_PHASES = 4  # offsets of a stroke against the servo grid that its turning point is aimed over
 BOTTOM_STEADY_S = 0.3  # s of steady feed before R in those rounds: the drive settles into it
 XY_ACCELERATION_SHARES = (1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3)  # of an S1 move's limits,
 XY_JERK_SHARES = (1.0, 0.3, 0.1, 0.03, 0.01, 3e-3, 1e-3, 3e-4)  # tried fastest first
@@ -276,7 +278,7 @@ class _Job:
         vibration or dwell) turns where the drive's feedback turns at the programmed
         depth. A drive with velocity lag overshoots the end of a feed stroke (about 16 um
         on mill3 at 1200 mm/min), one without full feed-forward falls short. The drive
-        model runs the stroke (from a steady feed) and the fast exit, and the turning
+        model runs the stroke (from a steady feed) and two exits, and the turning
         point moves by the error, a few rounds (one on mill3; a stiff drive whose bottom
         feedback rings needs about five, as the stroke's shape changes with its end)."""
         c = self.cycle
@@ -289,16 +291,26 @@ class _Job:
             steady = math.ceil(BOTTOM_STEADY_S / period)
             turn = bottom
             for _ in range(BOTTOM_ROUNDS):
-                stroke, exit_move = self._stroke(top, turn), self.fast_exit(turn).move
-                t_stroke = np.arange(math.ceil(stroke.duration / period)) * period
-                t_exit = np.arange(math.ceil(exit_move.duration / period) + steady) * period
+                stroke = self._stroke(top, turn)
                 before = top + c.feed * period * np.arange(steady, 0, -1)
-                pieces = [(before, np.full(steady, -c.feed), np.zeros(steady)),
-                          _z_samples(stroke, t_stroke), _z_samples(exit_move, t_exit)]
-                p, v, a = (np.concatenate([piece[q] for piece in pieces])[:, None] for q in range(3))
-                drive.reset(p[0])
-                drive.state.velocity[:] = v[0]
-                error = float(np.min(drive.run(p, v, a)[0][steady:, 0]) - bottom)
+                # The exit law is chosen later, per hole, and a stroke starts anywhere
+                # between two servo instants: aim between the extremes of the fastest and
+                # the gentlest exit (rest to rest above R) sampled at BOTTOM_PHASES, so
+                # that every hole lands close.
+                errors = []
+                for exit_move, phase in itertools.product(
+                        (self.fast_exit(turn).move, _z_move(self.z, turn, 0.0, 0.0, c.r_z + RETURN_CLEARANCE)),
+                        np.arange(BOTTOM_PHASES) / BOTTOM_PHASES):
+                    t_stroke = (phase + np.arange(math.ceil(stroke.duration / period - phase))) * period
+                    t_exit = t_stroke[-1] + period - stroke.duration + np.arange(
+                        math.ceil(exit_move.duration / period) + steady) * period
+                    pieces = [(before, np.full(steady, -c.feed), np.zeros(steady)),
+                              _z_samples(stroke, t_stroke), _z_samples(exit_move, t_exit)]
+                    p, v, a = (np.concatenate([piece[q] for piece in pieces])[:, None] for q in range(3))
+                    drive.reset(p[0])
+                    drive.state.velocity[:] = v[0]
+                    errors.append(float(np.min(drive.run(p, v, a)[0][steady:, 0]) - bottom))
+                error = 0.5 * (min(errors) + max(errors))
                 if abs(error) < 0.5 * float(drive.resolution[0]):
                     break
                 turn -= error

@@ -247,12 +247,9 @@ class _Job:
         if start["z"] < cycle.r_z:
             raise ValueError("the tool must start above the R plane")
         self.n = len(cycle.holes)
-        self.feed_stroke = _z_move(Limits(cycle.feed, self.z.acceleration, self.z.jerk),
-                                   cycle.r_z, -cycle.feed, 0.0, cycle.bottom_z)
         self._exits: dict[float, _Retract] = {}
         self._turns: dict[tuple[float, float], float] = {}
         self._strokes: dict[tuple[float, float], RuckigMove] = {}
-        self.fast = self.fast_exit(cycle.bottom_z)
         self._vibrated: dict[tuple[float, float], VibrationFeed] = {}
         position = (start["x"], start["y"])
         self.xy: list[_XYMove] = []
@@ -945,10 +942,7 @@ def lower_bound_time(machine: Machine, cycle: DrillCycle,
     is shorter."""
     first = start_xy if start_xy is not None else cycle.holes[0]
     job = _Job(machine, replace(cycle, compensate_xy=False), {"x": first[0], "y": first[1], "z": cycle.r_z})
-    if cycle.hole_planes is None:
-        below = job.n * (job.feed_stroke.duration + job.fast.t_r)
-    else:  # each hole from its own R (the fall from the X/Y plane to it left out) to its bottom
-        feed = Limits(cycle.feed, job.z.acceleration, job.z.jerk)
-        below = sum(_z_move(feed, top, -cycle.feed, 0.0, bottom).duration + job.fast_exit(bottom).t_r
-                    for _, top, bottom in map(cycle.planes, range(job.n)))
+    # each hole from its own R (a fall from the X/Y plane to a lower one left out) to its bottom
+    below = sum(job._stroke(top, bottom).duration + job.fast_exit(bottom).t_r
+                for _, top, bottom in map(cycle.planes, range(job.n)))
     return sum(xy.duration for xy in job.xy) + below

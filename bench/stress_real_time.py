@@ -29,16 +29,18 @@ def main() -> int:
     parser.add_argument("--limit", type=float, default=7200.0, help="longest the load runs (s)")
     args = parser.parse_args()
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    # the two suites run at once: each its own DDS domains (test/conftest.py), or they hear each other
+    rest_env, real_time_env = dict(env, CNC_TEST_DOMAINS="1-100"), dict(env, CNC_TEST_DOMAINS="211-230")
     pytest = [sys.executable, "-m", "pytest", "-q", "-p", "no:warnings", "-p", "no:cacheprovider"]
     busy = [subprocess.Popen([sys.executable, "-c", BUSY.format(limit=args.limit)]) for _ in range(2)]
     rest_log = tempfile.TemporaryFile("w+")
-    rest = subprocess.Popen(pytest + [f"--ignore={t}" for t in REAL_TIME_TESTS], cwd=ROOT, env=env,
+    rest = subprocess.Popen(pytest + [f"--ignore={t}" for t in REAL_TIME_TESTS], cwd=ROOT, env=rest_env,
                             stdout=rest_log, stderr=subprocess.STDOUT)
     lines, failed = [], 0
     try:
         for run in range(1, args.runs + 1):
             start = time.monotonic()
-            result = subprocess.run(pytest + REAL_TIME_TESTS, cwd=ROOT, env=env, capture_output=True, text=True)
+            result = subprocess.run(pytest + REAL_TIME_TESTS, cwd=ROOT, env=real_time_env, capture_output=True, text=True)
             tail = (result.stdout.strip().splitlines() or ["(no output)"])[-1]
             failed += result.returncode != 0
             suite = "running" if rest.poll() is None else "done"

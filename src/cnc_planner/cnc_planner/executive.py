@@ -74,6 +74,9 @@ class Executive:
         self.active: _Job | None = None
         self.seen_ids: set[str] = set()
         self.position: dict[str, float] | None = None  # where the next plan starts
+        self.bridge_alarm: str | None = None  # the bridge's latest report: "" healthy, else its
+        # alarm; None until it is heard. No job starts on a bridge not known healthy: a planner
+        # (re)started beside a bridge with a latched alarm would have its setpoints refused.
         self.cancel_early: deque[str] = deque(maxlen=100)  # canceled while being prepared
 
     def _expected_start(self) -> dict[str, float] | None:
@@ -172,10 +175,14 @@ class Executive:
         if self.position is None and self.active is None and standing:
             self.position = positions
 
+    def bridge_report(self, alarm: str) -> None:
+        """The bridge's latest diagnostic: ``alarm`` is "" when it reports no error."""
+        self.bridge_alarm = alarm
+
     def tick(self, now_ns: int) -> Output:
         """Advance to ``now``: start the next job, stream ahead, report progress and ends."""
         out = Output()
-        if self.active is None and self.queue and self.position is not None:
+        if self.active is None and self.queue and self.position is not None and self.bridge_alarm == "":
             self._start(now_ns, out)
         job = self.active
         if job is None or job.stream is None:

@@ -144,7 +144,10 @@ class PlannerNode(Node):
         stamp = msg.header.stamp.sec * NS + msg.header.stamp.nanosec
         for status in msg.status:
             mine = status.hardware_id == self.get_namespace()  # not another machine's bridge
-            if mine and status.level >= DiagnosticStatus.ERROR and status.name.startswith("cnc_servo_bridge"):
+            if not (mine and status.name.startswith("cnc_servo_bridge")):
+                continue
+            self.executive.bridge_report(status.message if status.level >= DiagnosticStatus.ERROR else "")
+            if status.level >= DiagnosticStatus.ERROR:
                 # The bridge stops the drives itself; the job ends here, unless the alarm
                 # is an old one that the running job's first setpoints are clearing. Drives
                 # disabled (bridge deactivated) end any job, however early its setpoints.

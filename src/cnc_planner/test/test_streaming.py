@@ -42,6 +42,7 @@ class Sim:
     def __init__(self, settings: Settings | None = None, now_ns: int = 0, feedback: bool = True):
         self.settings = settings or Settings()
         self.ex = Executive(MILL, self.settings)
+        self.ex.bridge_report("")  # the bridge has reported, without an alarm
         self.now = now_ns
         self.bridge = SetpointBuffer(MILL)
         self.position = np.zeros(len(MILL.joint_names))
@@ -543,6 +544,23 @@ def test_a_job_whose_later_segment_cannot_be_planned_ends_aborted_at_rest(monkey
     last = sim.chunks[-1][1]
     assert np.all(last.velocities[-1] == 0.0) and np.all(last.accelerations[-1] == 0.0)
     assert [e["hole"] for e in sim.events if e["name"] == "S1"] == list(range(SEGMENT_HOLES))
+
+
+def test_no_job_starts_until_the_bridge_is_heard_healthy():
+    """A planner restarted beside a bridge whose alarm is still latched (its last planner
+    died mid-job) would have every setpoint refused: it waits for an alarm-free report."""
+    sim = Sim()
+    sim.ex.bridge_alarm = None  # nothing heard from the bridge yet
+    sim.submit(move_job("waits", DEMO))
+    for report in (None, "setpoint buffer ran dry while moving: holding"):
+        if report is not None:
+            sim.ex.bridge_report(report)
+        for _ in range(5):
+            sim.tick()
+            sim.now += STEP_NS
+        assert not sim.chunks and sim.ex.active is None
+    sim.ex.bridge_report("")  # the alarm was reset
+    assert sim.run_job("waits").state == "succeeded"
 
 
 def first_chunks(sim: Sim):

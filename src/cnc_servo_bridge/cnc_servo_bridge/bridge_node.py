@@ -9,7 +9,7 @@ model, shutdown ends it. With ``autostart`` (the default) it brings itself up to
 In simulation mode the bridge owns time: it publishes /clock in lockstep with its servo
 steps, runs as fast as setpoints allow while axes move, waits for setpoints (up to
 ``underrun_timeout`` of wall time) rather than starving, and paces idle time to the wall
-clock (lockstep.py). In real-time mode it steps on a wall timer and stamps with the system
+clock (lockstep.py). In real-time mode it steps on a wall timer (lockstep.WallPacing) and stamps with the system
 clock.
 """
 from __future__ import annotations
@@ -35,7 +35,7 @@ from cnc_msgs_py.node import run_node
 from cnc_msgs_py.parameters import Param, declare, value
 from cnc_msgs_py.units import NS
 
-from .lockstep import Lockstep
+from .lockstep import Lockstep, WallPacing
 from .servo import DRIVES_DISABLED, Feedback, ServoLoop
 from .setpoints import SetpointError
 
@@ -126,6 +126,7 @@ class BridgeNode(LifecycleNode):
         self.steps = 0
         self.rejected = ""
         self.lockstep = Lockstep(self.period_ns, value(self, "underrun_timeout"), self.t_ns, time.monotonic())
+        self.pacing = WallPacing(self.period_ns)
         self.timer = self.create_timer(0.001, self.run)
         self.get_logger().info(f"configured for '{machine.name}' ({'simulation' if self.simulation else 'real time'})"
                                ", drives disabled")
@@ -225,8 +226,8 @@ class BridgeNode(LifecycleNode):
                 singles -= taken == 1
         else:
             now = self.get_clock().now().nanoseconds
-            while self.t_ns + self.period_ns <= now:
-                self._steps((now - self.t_ns) // self.period_ns)
+            while (due := self.pacing.steps_due(self.loop, self.t_ns, now)) > 0:
+                self._steps(due)
 
     def _steps(self, count: int) -> int:
         """Take up to ``count`` servo steps (a block where the loop can) and publish every

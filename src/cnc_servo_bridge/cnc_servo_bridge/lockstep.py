@@ -1,6 +1,7 @@
-"""When a simulated bridge may take its next servo step.
+"""When the bridge may take its next servo steps.
 
-In simulation the bridge owns time. While the axes move it steps as fast as setpoints
+In real time (WallPacing) the steps follow the wall clock. In simulation (Lockstep) the
+bridge owns time. While the axes move it steps as fast as setpoints
 allow and waits for the planner (up to ``underrun_timeout`` of wall time) rather than
 run dry; at rest with nothing buffered ahead, sim time follows the wall clock, so that
 new jobs can be scheduled a little ahead of it.
@@ -65,3 +66,28 @@ class Lockstep:
             return t_ns + self.period_ns - self.sim_at_wall_start <= (wall_s - self.wall_start) * NS
         self.idle = False
         return True
+
+
+class WallPacing:
+    """How many servo steps a real-time bridge takes now.
+
+    The steps due are those the wall clock has passed. After a stall (a loaded CPU) they can
+    reach past the buffered setpoints while the chunk that continues them already waits in
+    the subscription's queue; rclpy's executor runs ready timers before subscriptions, so
+    the bridge first gives the queue one turn (steps nothing) and only then runs dry.
+    """
+
+    def __init__(self, period_ns: int) -> None:
+        self.period_ns = period_ns
+        self.gave_queue_a_turn = False
+
+    def steps_due(self, loop: ServoLoop, t_ns: int, now_ns: int) -> int:
+        """Steps to take from ``t_ns`` at wall time ``now_ns`` (0: none now)."""
+        due = (now_ns - t_ns) // self.period_ns
+        if due <= 0:
+            return 0
+        if loop.starved(t_ns) and not self.gave_queue_a_turn:
+            self.gave_queue_a_turn = True
+            return 0
+        self.gave_queue_a_turn = False
+        return due

@@ -5,7 +5,7 @@ import numpy as np
 from ruckig import InputParameter, Ruckig, Trajectory
 
 from cnc_msgs_py.machine import load_machine
-from cnc_servo_bridge.lockstep import IDLE_GRACE_S, RECORDER_TIMEOUT_S, RECORDER_WINDOW_NS, Lockstep
+from cnc_servo_bridge.lockstep import IDLE_GRACE_S, RECORDER_TIMEOUT_S, RECORDER_WINDOW_NS, Lockstep, WallPacing
 from cnc_servo_bridge.servo import ServoLoop
 
 MILL = load_machine("mill3")
@@ -129,3 +129,24 @@ def test_a_recorder_that_fell_silent_no_longer_holds_the_clock():
     t = RECORDER_WINDOW_NS + MS
     assert not lockstep.may_step(loop, t, RECORDER_TIMEOUT_S)
     assert lockstep.may_step(loop, t, RECORDER_TIMEOUT_S + 0.01)  # gone: the machine runs on
+
+
+def test_real_time_steps_after_a_stall_let_the_queued_chunk_in_before_running_dry():
+    """The bridge stalled 200 ms mid-move; the steps due reach past the buffer. It steps to
+    the buffer's end, steps nothing once (the executor then delivers the queued chunk), and
+    goes on with it; without a chunk it runs dry on its next turn."""
+    for chunk_queued in (True, False):
+        loop, end_ns = loaded_loop(slice(0, 60))
+        pacing = WallPacing(MS)
+        now = end_ns + 200 * MS
+        t = 0
+        while (due := pacing.steps_due(loop, t, now)) > 0:
+            t += MS * len(loop.run(t, due))
+        assert t == end_ns + MS and not loop.alarm  # stepped to the buffer's end, no further
+        if chunk_queued:
+            p, v, a = (x[60:] for x in move([0.0, 0.0, 0.0, 0.0], [0.02, 0.0, 0.0, 0.0]))
+            loop.accept(JOINTS, t + np.arange(len(p)) * MS, p, v, a, now_ns=t)
+        while (due := pacing.steps_due(loop, t, now)) > 0:
+            t += MS * len(loop.run(t, due))
+        assert t == now  # caught up with the wall clock
+        assert bool(loop.alarm) is not chunk_queued, loop.alarm

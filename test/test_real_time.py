@@ -7,6 +7,7 @@ import time
 import numpy as np
 import pytest
 
+from cnc_planner.executive import Settings
 from cnc_planner.runner import Session
 from cnc_servo_bridge.recording import read_run
 
@@ -29,16 +30,16 @@ def test_a_job_runs_in_real_time_mode(tmp_path):
 
 
 def test_planning_the_next_job_does_not_starve_the_running_one(tmp_path):
-    """Goals that take longer to plan than the buffered setpoints last (0.3 s; four 50-hole
-    plates of different depths, each about 0.1 s when the CPU is free, and not
-    sharing the retract search's cache) arrive while a job runs in real time: they are
-    planned beside the stream, not in its way."""
+    """Goals that take longer to plan than the buffered setpoints last (1 s while goals are
+    planned; twelve 50-hole plates of different depths, each about 0.1 s when the CPU is
+    free, and not sharing the retract search's cache) arrive while a job runs in real time:
+    they are planned beside the stream, not in its way."""
     running = {"schema": "cnc_job/1", "job_id": "rt-run", "kind": "move", "machine": "mill3",
                "move": [{"rapid": {"x": 20.0}}, {"linear": {"x": 0.0}, "feed": 150}]}
     plates = [{"schema": "cnc_job/1", "job_id": f"rt-plate-{k}", "kind": "drill", "machine": "mill3",
                "spindle_rpm": 3000,
                "drill": {"holes": [[5.0 * (i % 10) + k, 5.0 * (i // 10)] for i in range(50)],
-                         "surface_z": 0.0, "depth": 5.0 + k, "r_gap": 2.0, "feed": 1200}} for k in range(4)]
+                         "surface_z": 0.0, "depth": 5.0 + 0.5 * k, "r_gap": 2.0, "feed": 1200}} for k in range(12)]
     ids = [p["job_id"] for p in plates]
     with Session("mill3", tmp_path / "bag", simulation=False) as session:
         session.submit(json.dumps(running))
@@ -59,7 +60,8 @@ def test_planning_the_next_job_does_not_starve_the_running_one(tmp_path):
     # the plates were planned and canceled while the first job ran
     for job_id in ids:
         assert order.index((job_id, "accepted")) < order.index((job_id, "canceled")) < order.index(("rt-run", "succeeded"))
-    assert planning > 0.3  # longer than the buffered setpoints last: planning inline would starve the stream
+    # longer than the buffered setpoints last: planning inline would starve the stream
+    assert planning > Settings().planning_lookahead_ns / 1e9
     assert final["state"] == "succeeded", final.get("reason")
     run = read_run(tmp_path / "bag")
     assert not run.alarms

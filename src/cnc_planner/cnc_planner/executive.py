@@ -36,6 +36,9 @@ class Settings:
     chunk_points: int = 100
     lookahead_ns: int = 300_000_000  # how far setpoints run ahead of the feedback; also
     # the longest a cancel waits: a stop begins where the setpoints sent so far end
+    planning_lookahead_ns: int = 1_000_000_000  # the same while a goal is being planned beside
+    # the running job: planning holds the GIL, and under CPU load the stream's thread then
+    # waits for it each time it asks (0.3 s of setpoints ran dry in real time)
     start_delay_ns: int = 400_000_000  # from the feedback that starts a job to its first setpoint:
     # the idle bridge's time runs on meanwhile, so this must cover a tick slowed by a loaded CPU
     status_period_ns: int = 500_000_000  # progress updates on job_status
@@ -179,8 +182,10 @@ class Executive:
         """The bridge's latest diagnostic: ``alarm`` is "" when it reports no error."""
         self.bridge_alarm = alarm
 
-    def tick(self, now_ns: int) -> Output:
-        """Advance to ``now``: start the next job, stream ahead, report progress and ends."""
+    def tick(self, now_ns: int, planning: bool = False) -> Output:
+        """Advance to ``now``: start the next job, stream ahead, report progress and ends.
+
+        ``planning``: goals are being planned beside the stream: it runs further ahead."""
         out = Output()
         if self.active is None and self.queue and self.position is not None and self.bridge_alarm == "":
             self._start(now_ns, out)
@@ -188,7 +193,8 @@ class Executive:
         if job is None or job.stream is None:
             return out
         stream = job.stream
-        while not stream.done and stream.served_until_ns < now_ns + self.settings.lookahead_ns:
+        ahead = self.settings.planning_lookahead_ns if planning else self.settings.lookahead_ns
+        while not stream.done and stream.served_until_ns < now_ns + ahead:
             chunk = stream.next_chunk()
             out.chunks.append(chunk)
             self._events_until(job, chunk.end_ns, out)

@@ -34,6 +34,9 @@ PARAMETERS = {
     "chunk_points": Param(100, "setpoints per joint_trajectory chunk", "points", (1, 10000), read_only=True),
     "lookahead": Param(0.3, "setpoints kept ahead of the feedback, and the longest a cancel waits", "s",
                        (0.05, 5.0)),
+    "planning_lookahead": Param(1.0, "setpoints kept ahead of the feedback while a goal is planned beside the "
+                                     "running job (planning slows the stream's thread), and the longest a "
+                                     "cancel then waits", "s", (0.05, 5.0)),
     "feedback_timeout": Param(2.0, "wall time without joint_states before a running job aborts", "s",
                               (0.1, 60.0)),
 }
@@ -61,6 +64,7 @@ class PlannerNode(Node):
             period_ns=round(value(self, "interpolation_period") * NS),
             chunk_points=value(self, "chunk_points"),
             lookahead_ns=round(value(self, "lookahead") * NS),
+            planning_lookahead_ns=round(value(self, "planning_lookahead") * NS),
         )
         self.feedback_timeout = value(self, "feedback_timeout")
         self.add_post_set_parameters_callback(self.on_parameters_set)
@@ -92,6 +96,8 @@ class PlannerNode(Node):
         for parameter in parameters:
             if parameter.name == "lookahead":
                 self.executive.settings.lookahead_ns = round(parameter.value * NS)
+            elif parameter.name == "planning_lookahead":
+                self.executive.settings.planning_lookahead_ns = round(parameter.value * NS)
             elif parameter.name == "feedback_timeout":
                 self.feedback_timeout = parameter.value
 
@@ -118,6 +124,8 @@ class PlannerNode(Node):
         self.status_pub.publish(String(data=status.encode()))
 
     def on_goal(self, msg: String) -> None:
+        # The running job's setpoints go further ahead before planning starts taking the GIL.
+        self.publish(self.executive.tick(self.now_ns(), planning=True))
         self.preparing.append(self.intake.submit(self.executive.prepare, msg.data))
 
     def admit_prepared(self) -> None:
@@ -128,7 +136,7 @@ class PlannerNode(Node):
         self.admit_prepared()
         for status in self.executive.cancel(decode_cancel(msg.data), self.now_ns(), preparing=bool(self.preparing)):
             self.publish_status(status)
-        self.publish(self.executive.tick(self.now_ns()))
+        self.publish(self.executive.tick(self.now_ns(), planning=bool(self.preparing)))
 
     def on_feedback(self, msg: JointState) -> None:
         self.last_feedback_wall = self.wall.now()
@@ -138,7 +146,7 @@ class PlannerNode(Node):
         self.admit_prepared()
         if self.trajectory_pub.get_subscription_count() == 0:
             return  # no bridge listening (yet): setpoints would be lost, so nothing starts
-        self.publish(self.executive.tick(self.latest_feedback_ns))
+        self.publish(self.executive.tick(self.latest_feedback_ns, planning=bool(self.preparing)))
 
     def on_diagnostics(self, msg: DiagnosticArray) -> None:
         stamp = msg.header.stamp.sec * NS + msg.header.stamp.nanosec

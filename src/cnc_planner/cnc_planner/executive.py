@@ -36,8 +36,8 @@ class Settings:
     chunk_points: int = 100
     lookahead_ns: int = 300_000_000  # how far setpoints run ahead of the feedback; also
     # the longest a cancel waits: a stop begins where the setpoints sent so far end
-    planning_lookahead_ns: int = 1_000_000_000  # the same while a goal is being planned beside
-    # the running job: planning holds the GIL, and under CPU load the stream's thread then
+    planning_lookahead_ns: int = 1_000_000_000  # the same while a goal (or the running job's
+    # next segment) is being planned beside the stream: planning holds the GIL, and under CPU load the stream's thread then
     # waits for it each time it asks (0.3 s of setpoints ran dry in real time)
     start_delay_ns: int = 400_000_000  # from the feedback that starts a job to its first setpoint:
     # the idle bridge's time runs on meanwhile, so this must cover a tick slowed by a loaded CPU
@@ -185,7 +185,8 @@ class Executive:
     def tick(self, now_ns: int, planning: bool = False) -> Output:
         """Advance to ``now``: start the next job, stream ahead, report progress and ends.
 
-        ``planning``: goals are being planned beside the stream: it runs further ahead."""
+        ``planning``: goals are being planned beside the stream, which then runs further
+        ahead, as it does while its own job's next segment is planned."""
         out = Output()
         if self.active is None and self.queue and self.position is not None and self.bridge_alarm == "":
             self._start(now_ns, out)
@@ -193,6 +194,7 @@ class Executive:
         if job is None or job.stream is None:
             return out
         stream = job.stream
+        planning = planning or job.plan.planning
         ahead = self.settings.planning_lookahead_ns if planning else self.settings.lookahead_ns
         while not stream.done and stream.served_until_ns < now_ns + ahead:
             chunk = stream.next_chunk()

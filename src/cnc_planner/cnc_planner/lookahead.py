@@ -61,6 +61,7 @@ class JobPlan:
         self._closed = False
         self._changed = threading.Condition()
         self._worker: threading.Thread | None = None
+        self._busy = False  # the worker is planning a segment now
 
     # --- what the executive reads -----------------------------------------------------------
 
@@ -80,6 +81,11 @@ class JobPlan:
         if self._complete:
             return self._end
         return self._end * self._count / self._planned
+
+    @property
+    def planning(self) -> bool:
+        """A later segment is being planned now (on the worker, sharing the GIL)."""
+        return self._busy
 
     @property
     def segments_held(self) -> int:
@@ -154,6 +160,7 @@ class JobPlan:
                                                                                self._wanted))
                 if self._closed:
                     return
+                self._busy = True
             try:
                 plan = next(self._source)
             except StopIteration:
@@ -163,6 +170,7 @@ class JobPlan:
             except Exception as err:  # noqa: BLE001 (a planner bug ends the job, never the node)
                 plan, error = None, f"{INTERNAL} ({type(err).__name__}: {(str(err).splitlines() or [''])[0][:120]})"
             with self._changed:
+                self._busy = False
                 if plan is None:
                     self.error, self._complete = error, True
                 else:

@@ -563,6 +563,19 @@ def test_no_job_starts_until_the_bridge_is_heard_healthy():
     assert sim.run_job("waits").state == "succeeded"
 
 
+def test_setpoints_run_further_ahead_while_a_goal_is_planned_beside_the_stream():
+    sim = Sim()
+    sim.submit(move_job("long", [{"rapid": {"x": 100}}, {"linear": {"x": 0}, "feed": 300}]))
+    sim.run_until(lambda: sim.ex.active is not None and sim.ex.active.stream is not None)
+    sim.run_for(0.5)
+    stream = sim.ex.active.stream
+    ahead = stream.served_until_ns - sim.now
+    assert sim.ex.settings.lookahead_ns <= ahead < sim.ex.settings.lookahead_ns + 100 * MS
+    sim.ex.tick(sim.now, planning=True)  # a goal arrived: it is planned on another thread
+    ahead = stream.served_until_ns - sim.now
+    assert sim.ex.settings.planning_lookahead_ns <= ahead < sim.ex.settings.planning_lookahead_ns + 100 * MS
+
+
 def first_chunks(sim: Sim):
     """Tick (feedback at rest) until the executive hands out the job's first chunks."""
     sim.ex.feedback(dict(zip(MILL.joint_names, sim.position.tolist())))

@@ -9,7 +9,8 @@
 (c) chunk lead on loopback, from the same recordings;
 (d) peak Python heap (tracemalloc) of plan_job versus job length.
 Run from the workspace root (ROS sourced, as for the tests):  python bench/load.py
-(a few minutes). Writes the table to bench/results/load.txt as well.
+(a few minutes). Writes the table to bench/results/load.txt as well; with --over-topics
+only (b) and (c) are run again and replaced in it.
 """
 from __future__ import annotations
 
@@ -179,16 +180,49 @@ def memory_rows() -> list[tuple]:
     return rows
 
 
-def main() -> int:
-    lines = []
-    print("(a) planning", flush=True)
-    plan_rows, notes = planning_rows()
-    print("(b, c) simulation over topics", flush=True)
+def simulations() -> list[dict]:
+    """(b) and (c): the three jobs over topics."""
     sims = []
     with tempfile.TemporaryDirectory() as tmp:
         for i, job in enumerate(("drill_row.yaml", "lathe_feed_vibration.yaml")):
             sims.append(simulate(job, Path(tmp) / str(i)))
         sims.append(simulate("plate 300 holes", Path(tmp) / "plate", drill_doc(300)))
+    return sims
+
+
+def topic_lines(sims: list[dict]) -> list[str]:
+    """Tables (b) and (c), ending with a blank line."""
+    lines = ["(b) simulation over topics (bridge in simulation mode, planner, recorder; as cnc-run)",
+             f"{'job':<28}{'state':>10}{'machine s':>10}{'wall s':>8}{'x real':>8}{'planner MiB':>12}"
+             f"{'bridge MiB':>11}{'chunks':>7}{'lost':>5}", "-" * 99]
+    lines += [f"{s['job']:<28}{s['state']:>10}{s['machine_s']:>10.2f}{s['wall_s']:>8.2f}{s['speed']:>8.2f}"
+              f"{s['planner_mib']:>12.1f}{s['bridge_mib']:>11.1f}{s['chunks']:>7}{s['lost']:>5}" for s in sims]
+    lines += ["", "(c) chunk lead on loopback (chunk's first stamp - bridge time at the recorder's receipt)",
+              f"{'job':<28}{'chunks':>7}{'p50 ms':>9}{'p99 ms':>9}{'min ms':>9}", "-" * 62]
+    lines += [f"{s['job']:<28}{len(s['lead']):>7}{np.percentile(s['lead'], 50) * 1e3:>9.1f}"
+              f"{np.percentile(s['lead'], 1) * 1e3:>9.1f}{s['lead'].min() * 1e3:>9.1f}" for s in sims]
+    return lines + [""]
+
+
+def over_topics_only() -> int:
+    """--over-topics: rerun (b) and (c) only and replace them in load.txt (the latest
+    figures, above the kept "before" block); (a) and (d) stay as last measured."""
+    text = (RESULTS / "load.txt").read_text()
+    start, end = text.index("(b) simulation over topics"), text.index("(d) peak memory")
+    text = text[:start] + "\n".join(topic_lines(simulations())) + "\n" + text[end:]
+    print(text)
+    write_result("load.txt", text)
+    return 0
+
+
+def main() -> int:
+    if "--over-topics" in sys.argv[1:]:
+        return over_topics_only()
+    lines = []
+    print("(a) planning", flush=True)
+    plan_rows, notes = planning_rows()
+    print("(b, c) simulation over topics", flush=True)
+    sims = simulations()
     print("(d) memory", flush=True)
     mem_rows = memory_rows()
 
@@ -196,15 +230,7 @@ def main() -> int:
               f"{'job':<22}{'plan s':>10}{'wall s':>10}{'x real time':>13}", "-" * 55]
     lines += [f"{n:<22}{d:>10.2f}{w:>10.3f}{x:>13.1f}" for n, d, w, x in plan_rows]
     lines += [f"  {n}" for n in notes]
-    lines += ["", "(b) simulation over topics (bridge in simulation mode, planner, recorder; as cnc-run)",
-              f"{'job':<28}{'state':>10}{'machine s':>10}{'wall s':>8}{'x real':>8}{'planner MiB':>12}"
-              f"{'bridge MiB':>11}{'chunks':>7}{'lost':>5}", "-" * 99]
-    lines += [f"{s['job']:<28}{s['state']:>10}{s['machine_s']:>10.2f}{s['wall_s']:>8.2f}{s['speed']:>8.2f}"
-              f"{s['planner_mib']:>12.1f}{s['bridge_mib']:>11.1f}{s['chunks']:>7}{s['lost']:>5}" for s in sims]
-    lines += ["", "(c) chunk lead on loopback (chunk's first stamp - bridge time at the recorder's receipt)",
-              f"{'job':<28}{'chunks':>7}{'p50 ms':>9}{'p99 ms':>9}{'min ms':>9}", "-" * 62]
-    lines += [f"{s['job']:<28}{len(s['lead']):>7}{np.percentile(s['lead'], 50) * 1e3:>9.1f}"
-              f"{np.percentile(s['lead'], 1) * 1e3:>9.1f}{s['lead'].min() * 1e3:>9.1f}" for s in sims]
+    lines += ["", *topic_lines(sims)]
     lines += ["", "(d) peak memory of plan_job versus job length (tracemalloc peak, Python heap)",
               f"{'job':<22}{'plan s':>10}{'peak MiB':>10}", "-" * 42]
     lines += [f"{n:<22}{d:>10.2f}{m:>10.1f}" for n, d, m in mem_rows]

@@ -114,6 +114,12 @@ def vm_hwm_kib(pid: int, field: str = "VmHWM") -> int:
     return 0
 
 
+def cpu_s(pid: int) -> float:
+    """CPU time (user + system) a process has used so far, s, from /proc."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def simulate(job_file: str, out: Path, doc: dict | None = None) -> dict:
     """One job over topics, as cnc-run: sim speed, node peak RSS, chunks lost, chunk lead."""
     from cnc_planner.runner import Session, local_dds_env
@@ -133,15 +139,26 @@ def simulate(job_file: str, out: Path, doc: dict | None = None) -> dict:
     with Session(doc["machine"], out / "bag", env=env, progress=poll) as session:
         procs.update(session.procs)
         sim0, wall0 = session.recorder.sim_ns, time.monotonic()
+        cpu0 = {"recorder": time.process_time(), **{name: cpu_s(p.pid) for name, p in procs.items()}}
         session.submit(json.dumps(doc))
         status = session.wait(job_id, 900)
         wall = time.monotonic() - wall0
         sim = (session.recorder.sim_ns - sim0) / 1e9
+        cpu = {"recorder": time.process_time(), **{name: cpu_s(p.pid) for name, p in procs.items()}}
         poll()
     run = read_run(out / "bag")
     return {"job": job_file, "state": status["state"], "machine_s": sim, "wall_s": wall,
             "speed": sim / wall, "planner_mib": peak["planner"] / 1024, "bridge_mib": peak["bridge"] / 1024,
-            "chunks": len(run.chunks), "lost": chunks_lost(run), "lead": chunk_lead(out / "bag")}
+            "chunks": len(run.chunks), "lost": chunks_lost(run), "lead": chunk_lead(out / "bag"),
+            **feedback_continuity(run.feedback_t),
+            "cpu": {name: (cpu[name] - cpu0[name]) / sim for name in cpu}, "load": os.getloadavg()[0]}
+
+
+def feedback_continuity(feedback_t: np.ndarray, period_s: float = 0.001) -> dict:
+    """joint_states samples missing from a recording between its first and last, and the
+    longest step between two recorded stamps (ms)."""
+    steps = np.diff(feedback_t)
+    return {"missing": int(np.sum(np.round(steps / period_s) - 1)), "gap_ms": float(steps.max() * 1e3)}
 
 
 def chunk_lead(bag: Path) -> np.ndarray:
@@ -194,9 +211,16 @@ def topic_lines(sims: list[dict]) -> list[str]:
     """Tables (b) and (c), ending with a blank line."""
     lines = ["(b) simulation over topics (bridge in simulation mode, planner, recorder; as cnc-run)",
              f"{'job':<28}{'state':>10}{'machine s':>10}{'wall s':>8}{'x real':>8}{'planner MiB':>12}"
-             f"{'bridge MiB':>11}{'chunks':>7}{'lost':>5}", "-" * 99]
+             f"{'bridge MiB':>11}{'chunks':>7}{'lost':>5}{'missing':>8}{'gap ms':>7}", "-" * 114]
     lines += [f"{s['job']:<28}{s['state']:>10}{s['machine_s']:>10.2f}{s['wall_s']:>8.2f}{s['speed']:>8.2f}"
-              f"{s['planner_mib']:>12.1f}{s['bridge_mib']:>11.1f}{s['chunks']:>7}{s['lost']:>5}" for s in sims]
+              f"{s['planner_mib']:>12.1f}{s['bridge_mib']:>11.1f}{s['chunks']:>7}{s['lost']:>5}"
+              f"{s['missing']:>8}{s['gap_ms']:>7.1f}" for s in sims]
+    lines += ["", "(b) CPU time per second of machine time (the same runs; load-independent, unlike x real)",
+              f"{'job':<28}{'planner':>9}{'bridge':>9}{'recorder':>9}{'sum':>7}{'ceiling on 2 CPUs':>19}"
+              f"{'load avg':>10}", "-" * 91]
+    lines += [f"{s['job']:<28}{s['cpu']['planner']:>9.3f}{s['cpu']['bridge']:>9.3f}{s['cpu']['recorder']:>9.3f}"
+              f"{sum(s['cpu'].values()):>7.3f}{min(2 / sum(s['cpu'].values()), 1 / max(s['cpu'].values())):>18.1f}x"
+              f"{s['load']:>10.1f}" for s in sims]
     lines += ["", "(c) chunk lead on loopback (chunk's first stamp - bridge time at the recorder's receipt)",
               f"{'job':<28}{'chunks':>7}{'p50 ms':>9}{'p99 ms':>9}{'min ms':>9}", "-" * 62]
     lines += [f"{s['job']:<28}{len(s['lead']):>7}{np.percentile(s['lead'], 50) * 1e3:>9.1f}"
@@ -255,7 +279,14 @@ x real time: planned machine time / wall time to plan and sample every 1 ms setp
   steps in lockstep with the setpoint stream, so this is the whole loop's speed (planner,
   bridge, DDS and the Python recorder writing every topic), not the drive model's alone.
   Peak RSS: VmHWM of the node processes from /proc, polled while they ran. chunks lost:
-  analysis.chunks_lost on the recording.
+  analysis.chunks_lost on the recording; missing: joint_states samples not in the
+  recording between its first and last, gap ms the longest step between two recorded
+  samples (1.0: none missing). Each process steps, plans or records on one
+  thread, so x real is at most min(2 CPUs / the sum, 1 / the largest) of the CPU seconds
+  per machine second: the "ceiling" column, what an otherwise idle 2-CPU machine would
+  allow before latency; x real is lower when other work shares the CPUs (load avg: the
+  1-minute load average at the end of the run). The recorder's figure is the bench
+  process's (it records).
 (c) The planner's publish time is not observable without instrumenting it, so the lead is
   measured instead: the recorder stamps each message with the latest bridge time it has
   heard (/clock or joint_states), and lead = the chunk's header stamp - that time. The

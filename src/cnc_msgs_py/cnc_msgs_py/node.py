@@ -1,9 +1,7 @@
 """Running a node process: one clean start and shutdown for the planner and the bridge."""
 from __future__ import annotations
 
-import signal
 import sys
-import threading
 import traceback
 from typing import Callable
 
@@ -21,7 +19,7 @@ SPIN_SLICE_S = 0.1  # longest the executor blocks before Python sees a signal
 def run_node(make: Callable[[], Node], name: str, args: list[str] | None = None) -> int:
     """Create the node and spin it until Ctrl-C or shutdown; a bad parameter (e.g. an
     unknown machine) is one line on stderr and exit code 2, not a traceback."""
-    # Ctrl-C (SIGINT) ends the spin (see spin), so the node is destroyed cleanly.
+    # Ctrl-C (SIGINT) becomes KeyboardInterrupt in spin, so the node is destroyed cleanly.
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     try:
         node = make()
@@ -48,18 +46,12 @@ def spin(node: Node) -> None:
 
     The executor is rclpy's event-driven one: the SingleThreadedExecutor rebuilds its wait
     set in Python for every message, which at 1 kHz joint_states set the pace of a
-    simulation. It spins in short slices, and Ctrl-C only sets a flag that ends the spin
-    after the slice: raised inside a callback, KeyboardInterrupt would be logged by the
-    executor as a FATAL error at every clean stop.
+    simulation. It spins in short slices so that Ctrl-C (KeyboardInterrupt) gets through.
     """
     executor = EventsExecutor(context=node.context)
     executor.add_node(node)
-    interrupted = threading.Event()
-    main_thread = threading.current_thread() is threading.main_thread()
-    if main_thread:
-        previous = signal.signal(signal.SIGINT, lambda *_: interrupted.set())
     try:
-        while node.context.ok() and not interrupted.is_set():
+        while node.context.ok():
             try:
                 executor.spin_once(timeout_sec=SPIN_SLICE_S)
             except (KeyboardInterrupt, ExternalShutdownException):
@@ -69,6 +61,4 @@ def spin(node: Node) -> None:
                     return
                 node.get_logger().error(f"kept running after an error in a callback:\n{traceback.format_exc()}")
     finally:
-        if main_thread:
-            signal.signal(signal.SIGINT, previous)
         executor.remove_node(node)

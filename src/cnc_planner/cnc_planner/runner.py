@@ -166,7 +166,10 @@ class Session:
         self.recorder = Recorder(self.bag, namespace)
         # One executor for the whole session, event driven: rclpy's SingleThreadedExecutor
         # rebuilds its wait set in Python for every message, about 0.3 ms each, which set
-        # the pace of a simulation running faster than real time (1 kHz feedback).
+        # the pace of a simulation running faster than real time (1 kHz feedback). It
+        # misses a message that arrives before the node is added (see cnc_msgs_py.node):
+        # the recorder is added before it publishes a goal, and the feedback it might miss
+        # then comes before any job.
         self.executor = EventsExecutor()
         self.executor.add_node(self.recorder)
         self.cancel_pub = self.recorder.create_publisher(String, topics.JOB_CANCEL, qos.JOB_CANCEL)

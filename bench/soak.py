@@ -10,7 +10,7 @@ time, every topic recorded to MCAP), then the recording is checked:
   (drill_analysis: the tip below R only with X/Y on the hole);
 - peak RSS (VmHWM) of the planner and bridge processes, and their RSS at 10 %, 50 % and
   100 % of the job, to show it does not grow with the job.
-Run from the workspace root:  python bench/soak.py   (about 40 minutes on 2 CPUs;
+Run from the workspace root:  python bench/soak.py   (about 20 minutes on 2 CPUs;
 `--quick` runs both jobs cut to a tenth, `--only plate|raster` one of them). Writes
 bench/results/soak.txt (soak_<options>.txt for the variants).
 """

@@ -47,7 +47,7 @@ bench-peer: setup
 	$(PY) bench/peer/run.py
 
 # A 10,000-hole plate and a 1-hour raster streamed over topics and checked from their
-# recordings: not part of `make bench`; about 40 minutes on 2 CPUs.
+# recordings: not part of `make bench`; about 20 minutes on 2 CPUs (more under load).
 soak: setup
 	$(PY) bench/soak.py
 

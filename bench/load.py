@@ -9,7 +9,8 @@
 (c) chunk lead on loopback, from the same recordings;
 (d) peak Python heap (tracemalloc) of plan_job versus job length.
 Run from the workspace root (ROS sourced, as for the tests):  python bench/load.py
-(a few minutes). Writes the table to bench/results/load.txt as well.
+(a few minutes). Writes the table to bench/results/load.txt as well; with --over-topics
+only (b) and (c) are run again and replaced in it.
 """
 from __future__ import annotations
 
@@ -113,6 +114,12 @@ def vm_hwm_kib(pid: int, field: str = "VmHWM") -> int:
     return 0
 
 
+def cpu_s(pid: int) -> float:
+    """CPU time (user + system) a process has used so far, s, from /proc."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def simulate(job_file: str, out: Path, doc: dict | None = None) -> dict:
     """One job over topics, as cnc-run: sim speed, node peak RSS, chunks lost, chunk lead."""
     from cnc_planner.runner import Session, local_dds_env
@@ -132,15 +139,26 @@ def simulate(job_file: str, out: Path, doc: dict | None = None) -> dict:
     with Session(doc["machine"], out / "bag", env=env, progress=poll) as session:
         procs.update(session.procs)
         sim0, wall0 = session.recorder.sim_ns, time.monotonic()
+        cpu0 = {"recorder": time.process_time(), **{name: cpu_s(p.pid) for name, p in procs.items()}}
         session.submit(json.dumps(doc))
         status = session.wait(job_id, 900)
         wall = time.monotonic() - wall0
         sim = (session.recorder.sim_ns - sim0) / 1e9
+        cpu = {"recorder": time.process_time(), **{name: cpu_s(p.pid) for name, p in procs.items()}}
         poll()
     run = read_run(out / "bag")
     return {"job": job_file, "state": status["state"], "machine_s": sim, "wall_s": wall,
             "speed": sim / wall, "planner_mib": peak["planner"] / 1024, "bridge_mib": peak["bridge"] / 1024,
-            "chunks": len(run.chunks), "lost": chunks_lost(run), "lead": chunk_lead(out / "bag")}
+            "chunks": len(run.chunks), "lost": chunks_lost(run), "lead": chunk_lead(out / "bag"),
+            **feedback_continuity(run.feedback_t),
+            "cpu": {name: (cpu[name] - cpu0[name]) / sim for name in cpu}, "load": os.getloadavg()[0]}
+
+
+def feedback_continuity(feedback_t: np.ndarray, period_s: float = 0.001) -> dict:
+    """joint_states samples missing from a recording between its first and last, and the
+    longest step between two recorded stamps (ms)."""
+    steps = np.diff(feedback_t)
+    return {"missing": int(np.sum(np.round(steps / period_s) - 1)), "gap_ms": float(steps.max() * 1e3)}
 
 
 def chunk_lead(bag: Path) -> np.ndarray:
@@ -179,16 +197,56 @@ def memory_rows() -> list[tuple]:
     return rows
 
 
-def main() -> int:
-    lines = []
-    print("(a) planning", flush=True)
-    plan_rows, notes = planning_rows()
-    print("(b, c) simulation over topics", flush=True)
+def simulations() -> list[dict]:
+    """(b) and (c): the three jobs over topics."""
     sims = []
     with tempfile.TemporaryDirectory() as tmp:
         for i, job in enumerate(("drill_row.yaml", "lathe_feed_vibration.yaml")):
             sims.append(simulate(job, Path(tmp) / str(i)))
         sims.append(simulate("plate 300 holes", Path(tmp) / "plate", drill_doc(300)))
+    return sims
+
+
+def topic_lines(sims: list[dict]) -> list[str]:
+    """Tables (b) and (c), ending with a blank line."""
+    lines = ["(b) simulation over topics (bridge in simulation mode, planner, recorder; as cnc-run)",
+             f"{'job':<28}{'state':>10}{'machine s':>10}{'wall s':>8}{'x real':>8}{'planner MiB':>12}"
+             f"{'bridge MiB':>11}{'chunks':>7}{'lost':>5}{'missing':>8}{'gap ms':>7}", "-" * 114]
+    lines += [f"{s['job']:<28}{s['state']:>10}{s['machine_s']:>10.2f}{s['wall_s']:>8.2f}{s['speed']:>8.2f}"
+              f"{s['planner_mib']:>12.1f}{s['bridge_mib']:>11.1f}{s['chunks']:>7}{s['lost']:>5}"
+              f"{s['missing']:>8}{s['gap_ms']:>7.1f}" for s in sims]
+    lines += ["", "(b) CPU time per second of machine time (the same runs; load-independent, unlike x real)",
+              f"{'job':<28}{'planner':>9}{'bridge':>9}{'recorder':>9}{'sum':>7}{'ceiling on 2 CPUs':>19}"
+              f"{'load avg':>10}", "-" * 91]
+    lines += [f"{s['job']:<28}{s['cpu']['planner']:>9.3f}{s['cpu']['bridge']:>9.3f}{s['cpu']['recorder']:>9.3f}"
+              f"{sum(s['cpu'].values()):>7.3f}{min(2 / sum(s['cpu'].values()), 1 / max(s['cpu'].values())):>18.1f}x"
+              f"{s['load']:>10.1f}" for s in sims]
+    lines += ["", "(c) chunk lead on loopback (chunk's first stamp - bridge time at the recorder's receipt)",
+              f"{'job':<28}{'chunks':>7}{'p50 ms':>9}{'p99 ms':>9}{'min ms':>9}", "-" * 62]
+    lines += [f"{s['job']:<28}{len(s['lead']):>7}{np.percentile(s['lead'], 50) * 1e3:>9.1f}"
+              f"{np.percentile(s['lead'], 1) * 1e3:>9.1f}{s['lead'].min() * 1e3:>9.1f}" for s in sims]
+    return lines + [""]
+
+
+def over_topics_only() -> int:
+    """--over-topics: rerun (b) and (c) only and replace them in load.txt (the latest
+    figures, above the kept "before" block); (a) and (d) stay as last measured."""
+    text = (RESULTS / "load.txt").read_text()
+    start, end = text.index("(b) simulation over topics"), text.index("(d) peak memory")
+    text = text[:start] + "\n".join(topic_lines(simulations())) + "\n" + text[end:]
+    print(text)
+    write_result("load.txt", text)
+    return 0
+
+
+def main() -> int:
+    if "--over-topics" in sys.argv[1:]:
+        return over_topics_only()
+    lines = []
+    print("(a) planning", flush=True)
+    plan_rows, notes = planning_rows()
+    print("(b, c) simulation over topics", flush=True)
+    sims = simulations()
     print("(d) memory", flush=True)
     mem_rows = memory_rows()
 
@@ -196,15 +254,7 @@ def main() -> int:
               f"{'job':<22}{'plan s':>10}{'wall s':>10}{'x real time':>13}", "-" * 55]
     lines += [f"{n:<22}{d:>10.2f}{w:>10.3f}{x:>13.1f}" for n, d, w, x in plan_rows]
     lines += [f"  {n}" for n in notes]
-    lines += ["", "(b) simulation over topics (bridge in simulation mode, planner, recorder; as cnc-run)",
-              f"{'job':<28}{'state':>10}{'machine s':>10}{'wall s':>8}{'x real':>8}{'planner MiB':>12}"
-              f"{'bridge MiB':>11}{'chunks':>7}{'lost':>5}", "-" * 99]
-    lines += [f"{s['job']:<28}{s['state']:>10}{s['machine_s']:>10.2f}{s['wall_s']:>8.2f}{s['speed']:>8.2f}"
-              f"{s['planner_mib']:>12.1f}{s['bridge_mib']:>11.1f}{s['chunks']:>7}{s['lost']:>5}" for s in sims]
-    lines += ["", "(c) chunk lead on loopback (chunk's first stamp - bridge time at the recorder's receipt)",
-              f"{'job':<28}{'chunks':>7}{'p50 ms':>9}{'p99 ms':>9}{'min ms':>9}", "-" * 62]
-    lines += [f"{s['job']:<28}{len(s['lead']):>7}{np.percentile(s['lead'], 50) * 1e3:>9.1f}"
-              f"{np.percentile(s['lead'], 1) * 1e3:>9.1f}{s['lead'].min() * 1e3:>9.1f}" for s in sims]
+    lines += ["", *topic_lines(sims)]
     lines += ["", "(d) peak memory of plan_job versus job length (tracemalloc peak, Python heap)",
               f"{'job':<22}{'plan s':>10}{'peak MiB':>10}", "-" * 42]
     lines += [f"{n:<22}{d:>10.2f}{m:>10.1f}" for n, d, m in mem_rows]
@@ -229,7 +279,14 @@ x real time: planned machine time / wall time to plan and sample every 1 ms setp
   steps in lockstep with the setpoint stream, so this is the whole loop's speed (planner,
   bridge, DDS and the Python recorder writing every topic), not the drive model's alone.
   Peak RSS: VmHWM of the node processes from /proc, polled while they ran. chunks lost:
-  analysis.chunks_lost on the recording.
+  analysis.chunks_lost on the recording; missing: joint_states samples not in the
+  recording between its first and last, gap ms the longest step between two recorded
+  samples (1.0: none missing). Each process steps, plans or records on one
+  thread, so x real is at most min(2 CPUs / the sum, 1 / the largest) of the CPU seconds
+  per machine second: the "ceiling" column, what an otherwise idle 2-CPU machine would
+  allow before latency; x real is lower when other work shares the CPUs (load avg: the
+  1-minute load average at the end of the run). The recorder's figure is the bench
+  process's (it records).
 (c) The planner's publish time is not observable without instrumenting it, so the lead is
   measured instead: the recorder stamps each message with the latest bridge time it has
   heard (/clock or joint_states), and lead = the chunk's header stamp - that time. The

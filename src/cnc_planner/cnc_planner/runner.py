@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Callable
 
 import rclpy
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from builtin_interfaces.msg import Time
@@ -81,7 +81,7 @@ def _stamp_ns(msg) -> int:
     return msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
 
 
-def _header_stamp_ns(cdr: bytes) -> int:
+def header_stamp_ns(cdr: bytes) -> int:
     """header.stamp of a serialized message that starts with a std_msgs/Header: after the
     4-byte CDR encapsulation come sec (int32) and nanosec (uint32), little endian. Read
     directly because every joint_states passes through here."""
@@ -113,13 +113,9 @@ class Recorder(Node):
             if topic == "/clock":
                 self.sim_ns = _stamp_ns(deserialize_message(data, message_class(RECORDED["/clock"])))
             elif topic == "joint_states":
-                self.feedback_ns = _header_stamp_ns(data)
+                self.feedback_ns = header_stamp_ns(data)
             # Bag time: the machine's time (sim time, or the wall clock in real-time mode).
             self.bag.write(name, max(self.sim_ns, self.feedback_ns), data)
-            # (not only forwards: a restarted bridge starts its clock again)
-            if topic == "joint_states" and not 0 <= self.feedback_ns - self.acked_ns < ACK_EVERY_NS:
-                self.acked_ns = self.feedback_ns
-                self.ack_pub.publish(Time(sec=self.feedback_ns // NS, nanosec=self.feedback_ns % NS))
             if topic == "job_status":
                 status = json.loads(deserialize_message(data, String).data)
                 self.statuses.append(status)
@@ -129,6 +125,16 @@ class Recorder(Node):
                 msg = deserialize_message(data, message_class(RECORDED["/diagnostics"]))
                 self.planner_heartbeats += any(s.name.startswith("cnc_planner") for s in msg.status)
         return write
+
+    def acknowledge(self) -> None:
+        """Tell the bridge what has been written (recorded_until). Called between spins,
+        not per message: the executor takes every queued message in one spin, so acks
+        from within would let the clock run on while the caller's condition (a job's
+        end, an instant to cancel at) waits to be checked."""
+        # (not only forwards: a restarted bridge starts its clock again)
+        if not 0 <= self.feedback_ns - self.acked_ns < ACK_EVERY_NS:
+            self.acked_ns = self.feedback_ns
+            self.ack_pub.publish(Time(sec=self.feedback_ns // NS, nanosec=self.feedback_ns % NS))
 
     def ready(self) -> bool:
         """Planner listening for goals and bridge publishing feedback."""
@@ -158,10 +164,13 @@ class Session:
         self.bag = BagWriter(bag_dir, {topic_name(t, namespace): m for t, m in RECORDED.items()})
         rclpy.init()
         self.recorder = Recorder(self.bag, namespace)
-        # One executor for the whole session: rclpy.spin_once(node) adds and removes the node
-        # on every call, rebuilding the wait set for each message, which cannot keep up
-        # with 1 kHz feedback from a simulation running faster than real time.
-        self.executor = SingleThreadedExecutor()
+        # One executor for the whole session, event driven: rclpy's SingleThreadedExecutor
+        # rebuilds its wait set in Python for every message, about 0.3 ms each, which set
+        # the pace of a simulation running faster than real time (1 kHz feedback). It
+        # misses a message that arrives before the node is added (see cnc_msgs_py.node):
+        # the recorder is added before it publishes a goal, and the feedback it might miss
+        # then comes before any job.
+        self.executor = EventsExecutor()
         self.executor.add_node(self.recorder)
         self.cancel_pub = self.recorder.create_publisher(String, topics.JOB_CANCEL, qos.JOB_CANCEL)
         self.fault_pub = self.recorder.create_publisher(String, topics.INJECT_FAULT, qos.INJECT_FAULT)
@@ -229,6 +238,8 @@ class Session:
                 for status in self.recorder.statuses[self._shown:]:
                     self.progress(status)
                 self._shown = len(self.recorder.statuses)
+            if not done():  # once it holds, no ack lets the clock run on past it
+                self.recorder.acknowledge()
 
     def close(self) -> None:
         self.executor.remove_node(self.recorder)

@@ -49,8 +49,8 @@ def test_cnc_submit_runs_and_cancels_jobs_on_running_nodes(tmp_path):
     job = tmp_path / "short.yaml"
     job.write_text(yaml_text(move_job("sub-1", 20.0)))
     long_job = tmp_path / "long.yaml"
-    # 12 s of feed: longer than --cancel-after even with the simulation running ~3x real time
-    long_job.write_text(yaml_text(move_job("sub-2", 200.0, feed=1000.0)))
+    # 120 s of feed: longer than --cancel-after even with the simulation running 10x real time
+    long_job.write_text(yaml_text(move_job("sub-2", 200.0, feed=100.0)))
     with Session("mill3", tmp_path / "bag") as session:
         proc = submit_process(job, "--namespace", "/cnc", "--timeout", "30")
         out, err = finish(session, proc)

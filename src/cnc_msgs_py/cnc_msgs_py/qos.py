@@ -13,9 +13,12 @@ def _reliable(depth: int, latched: bool = False) -> QoSProfile:
     )
 
 
-JOB_GOAL = _reliable(10)
-JOB_CANCEL = _reliable(10)
-JOB_STATUS = _reliable(10, latched=True)
+# Goals, cancels and statuses are never dropped for depth: a cell controller may queue a
+# burst of jobs while the planner's executor is busy with 1 kHz feedback (twelve goals in
+# one burst lost two of them at depth 10). 100 in flight is far beyond a real cell's queue.
+JOB_GOAL = _reliable(100)
+JOB_CANCEL = _reliable(100)
+JOB_STATUS = _reliable(100, latched=True)
 JOB_EVENTS = _reliable(100)
 JOINT_TRAJECTORY = _reliable(topics.TRAJECTORY_DEPTH)
 # Feedback: a deep history so that a recorder falling behind during fast simulation

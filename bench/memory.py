@@ -11,7 +11,7 @@
     raster of that many lines (880: the 1-hour raster).
 Run from the workspace root:  python bench/memory.py [--long 10000] [--raster 880]   (a few
 minutes; with both soak jobs about 40 more). Writes the table to bench/results/memory.txt
-(memory_soak.txt when it includes a soak job).
+(memory_plate<N>_raster<LINES>.txt with the soak jobs).
 """
 from __future__ import annotations
 
@@ -105,7 +105,8 @@ def main() -> int:
     lines += ["", NOTES.format(cpus=os.cpu_count())]
     text = "\n".join(lines)
     print(text)
-    write_result("memory_soak.txt" if args.long or args.raster else "memory.txt", text)
+    name = "memory" + (f"_plate{args.long}" if args.long else "") + (f"_raster{args.raster}" if args.raster else "")
+    write_result(f"{name}.txt", text)
     return 0
 
 

@@ -31,7 +31,7 @@ from .headroom import plan_within_limits
 from .hole_order import shortest_order
 from .peck import PLANE_GAP as PECK_PLANE_GAP, Peck
 from .kinematics import Kinematics
-from .motion import axis_limits, path_limits
+from .motion import axis_limits, path_limits, shared_samples
 from .path_job import plan_path
 from .timeline import Event, Piece, Plan
 from .thread_cutting import ThreadError, ThreadSpec, check_thread, plan_thread
@@ -419,10 +419,11 @@ def plan_drill_tilted(job: SimpleNamespace, machine: Machine, builder: PlanBuild
     # Travel of everything in between (air arcs above R): sampled on the servo grid.
     ts = np.arange(t1, end, 1e-3)
     if len(ts):
-        for i, j in enumerate(XYZ):
-            p = builder.timelines[j].sample(ts)[0]
-            worst = int(np.argmax(np.maximum(machine.axes[j].min - p, p - machine.axes[j].max)))
-            check_travel(machine, {j: float(p[worst])}, "drill")
+        with shared_samples():
+            for i, j in enumerate(XYZ):
+                p = builder.timelines[j].sample(ts)[0]
+                worst = int(np.argmax(np.maximum(machine.axes[j].min - p, p - machine.axes[j].max)))
+                check_travel(machine, {j: float(p[worst])}, "drill")
 
 
 def settle_time(builder: PlanBuilder, kin: Kinematics, t0: float, tol: float, period: float,
@@ -431,7 +432,8 @@ def settle_time(builder: PlanBuilder, kin: Kinematics, t0: float, tol: float, pe
     the tip within ``tol`` of the commanded tip, in whole servo periods."""
     joints = tuple(j for j in builder.machine.joint_names if j != SPINDLE)
     ts = np.arange(int(np.ceil((t0 + horizon) / period)) + 1) * period
-    p, v, a = (np.stack(q, axis=1) for q in zip(*(builder.timelines[j].sample(ts) for j in joints)))
+    with shared_samples():
+        p, v, a = (np.stack(q, axis=1) for q in zip(*[builder.timelines[j].sample(ts) for j in joints]))
     feedback, _ = DriveModel(builder.machine, period, joints).simulate(p, v, a)
     commanded, _ = kin.fk_many(dict(zip(joints, p.T)))
     actual, _ = kin.fk_many(dict(zip(joints, feedback.T)))

@@ -7,7 +7,10 @@ ruckig's velocity interface.
 """
 from __future__ import annotations
 
+import threading
+from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import Iterator
 
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
@@ -35,13 +38,38 @@ def axis_limits(axis: Axis) -> Limits:
     return Limits(axis.max_velocity, axis.max_acceleration, axis.max_jerk)
 
 
+class _SampleScope(threading.local):
+    """This thread's open ``shared_samples`` scopes and the samples taken within them."""
+
+    def __init__(self) -> None:
+        self.depth = 0
+        self.samples: dict[tuple, np.ndarray] = {}
+
+
+_scope = _SampleScope()
+
+
+@contextmanager
+def shared_samples() -> Iterator[None]:
+    """Within this scope a move asked for the same instants again (by each joint of one
+    plan sample) is evaluated once; the samples are dropped when the outermost scope ends.
+    (A cache kept in every move instead kept its last, often 30 s long, sample alive with
+    the plan: ~24 MiB per 500-move segment held by the planner node.)"""
+    _scope.depth += 1
+    try:
+        yield
+    finally:
+        _scope.depth -= 1
+        if _scope.depth == 0:
+            _scope.samples.clear()
+
+
 class RuckigMove:
     """A ruckig trajectory over several degrees of freedom, sampled on demand."""
 
     def __init__(self, trajectory: Trajectory) -> None:
         self.trajectory = trajectory
         self._sampler: TrajectorySampler | None = None  # built on first use: most searched moves are never sampled
-        self._cache: tuple[tuple[int, float, float], np.ndarray] | None = None
 
     @property
     def duration(self) -> float:
@@ -49,15 +77,19 @@ class RuckigMove:
 
     def sample_all(self, t: np.ndarray) -> np.ndarray:
         """Array (3, len(t), dofs): position, velocity, acceleration."""
-        # Every joint of a chunk asks for the same instants: evaluate ruckig once.
-        key = (len(t), float(t[0]), float(t[-1])) if len(t) else (0, 0.0, 0.0)
-        if self._cache is not None and self._cache[0] == key:
-            return self._cache[1]
+        if _scope.depth == 0:
+            return self._sample(t)
+        # The key holds the move itself (compared by identity), so it cannot outlive it.
+        key = (self, len(t), float(t[0]), float(t[-1])) if len(t) else (self, 0, 0.0, 0.0)
+        out = _scope.samples.get(key)
+        if out is None:
+            out = _scope.samples[key] = self._sample(t)
+        return out
+
+    def _sample(self, t: np.ndarray) -> np.ndarray:
         if self._sampler is None:
             self._sampler = TrajectorySampler(self.trajectory)
-        out = self._sampler.sample(t)
-        self._cache = (key, out)
-        return out
+        return self._sampler.sample(t)
 
     def sampler(self, dof: int):
         """A sampler of one degree of freedom, for a JointTimeline piece."""

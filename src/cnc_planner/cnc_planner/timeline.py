@@ -14,6 +14,8 @@ from typing import Callable
 
 import numpy as np
 
+from .motion import shared_samples
+
 # Local time (s, from the piece's start) -> position, velocity, acceleration arrays.
 Sampler = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
 
@@ -119,6 +121,7 @@ class Plan:
     def duration(self) -> float:
         return max(tl.end_time for tl in self.timelines.values())
 
+    @shared_samples()  # every joint asks a multi-axis move for the same instants
     def sample(self, ts: np.ndarray, joints: tuple[str, ...] | None = None
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Setpoints at sorted plan times ts: three arrays of shape (len(ts), joints), of

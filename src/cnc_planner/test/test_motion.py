@@ -411,3 +411,25 @@ def test_velocity_change_stops_from_motion():
     assert stop.duration == pytest.approx(0.5 / 9.8 + 9.8 / 200.0, rel=1e-9)
     # and it travels v*T/2 (symmetric ramp)
     assert end_p == pytest.approx(0.5 * stop.duration / 2, rel=1e-9)
+
+
+def test_a_plan_sample_evaluates_each_move_once_and_keeps_no_samples(monkeypatch):
+    """Every joint of a three-axis rapid asks its one ruckig move for the same instants:
+    it is evaluated once per plan sample, and nothing sampled stays with the plan."""
+    from cnc_planner import motion
+    from cnc_servo_bridge.jerk_profile import TrajectorySampler
+
+    calls = []
+    evaluate = TrajectorySampler.sample
+    monkeypatch.setattr(TrajectorySampler, "sample", lambda self, t: calls.append(len(t)) or evaluate(self, t))
+    builder = PlanBuilder(MILL, {"x": -0.2, "y": 0.1, "z": 0.05})
+    builder.rapid({"x": 0.3, "y": -0.25, "z": -0.2})
+    plan = builder.build()
+    ts = grid(plan.duration)
+    p, _, _ = plan.sample(ts)
+    inside = int(np.sum(ts < plan.duration))
+    assert calls == [inside]  # one evaluation serves x, y and z
+    assert p[-1, :3].tolist() == [0.3, -0.25, -0.2]
+    assert motion._scope.depth == 0 and motion._scope.samples == {}
+    plan.sample(ts)
+    assert calls == [inside, inside]  # a second plan sample evaluates again: nothing was kept

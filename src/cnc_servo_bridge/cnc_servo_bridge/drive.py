@@ -14,19 +14,23 @@ With accel_ff = 1 the velocity loop's lag is cancelled for slow references; the 
 uses the same model (this module) to predict and pre-compensate the lag.
 
 ``step`` is the reference implementation, one period at a time in numpy. ``run`` and
-``simulate`` advance many periods at once through a compiled kernel (numba) that performs
-the same floating-point operations in the same order, so both give the same positions
+``simulate`` advance many periods at once through a compiled kernel that performs the
+same floating-point operations in the same order, so both give the same positions
 (tested to 1e-12 m, clamps and quantisation included) at a few hundred times the speed:
-the planner's safety searches and the bridge's block stepping use it.
+the planner's safety searches and the bridge's block stepping use it. The kernel is a
+small C function (_drive_kernel.c) that the package's setup.py compiles when it is
+installed, so a node loads a few kilobytes of machine code, not a JIT compiler (numba
+and LLVM cost each node about 125 MiB of resident memory).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from cnc_msgs_py.machine import Machine
+
+from ._drive_kernel import run as _run
 
 VELOCITY_HEADROOM = 1.2
 ACCELERATION_HEADROOM = 1.5
@@ -115,29 +119,9 @@ class DriveModel:
 
 
 def warm_up() -> None:
-    """Load the compiled kernel now: at a node's start, not on the first job's clock (from
-    numba's on-disk cache this takes about 0.2 s, a first compile a few seconds)."""
+    """Run the compiled kernel once at a node's start, so a kernel that does not load or
+    run fails there and not on the first job's clock."""
     one = np.zeros((1, 1))
     state = [np.zeros(1) for _ in range(3)]
     _run(one, one, one, *state, *(np.ones(1) for _ in range(4)), np.ones(1), np.ones(1), np.ones(1),
          1e-3, np.empty((3, 1, 1)))
-
-
-@numba.njit(cache=True, nogil=True)
-def _run(p_ref, v_ref, a_ref, position, velocity, measured, kp, velocity_ff, accel_gain, decay,
-         v_limit, dv_limit, resolution, period, out):  # pragma: no cover (compiled)
-    """DriveModel.step over every row, in place on the state; out[0..2] = measured,
-    velocity and following error before each step. Same operations, same order."""
-    for i in range(p_ref.shape[0]):
-        for j in range(p_ref.shape[1]):
-            error = p_ref[i, j] - measured[j]
-            out[0, i, j] = measured[j]
-            out[1, i, j] = velocity[j]
-            out[2, i, j] = error
-            v_cmd = velocity_ff[j] * v_ref[i, j] + accel_gain[j] * a_ref[i, j] + kp[j] * error
-            v_cmd = min(max(v_cmd, -v_limit[j]), v_limit[j])
-            v_new = v_cmd + (velocity[j] - v_cmd) * decay[j]
-            v_new = velocity[j] + min(max(v_new - velocity[j], -dv_limit[j]), dv_limit[j])
-            position[j] = position[j] + 0.5 * (velocity[j] + v_new) * period
-            velocity[j] = v_new
-            measured[j] = np.rint(position[j] / resolution[j]) * resolution[j]

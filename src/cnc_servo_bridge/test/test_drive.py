@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from cnc_msgs_py.machine import load_machine
+from cnc_servo_bridge import _drive_kernel
 from cnc_servo_bridge.drive import ACCELERATION_HEADROOM, VELOCITY_HEADROOM, DriveModel
 
 MILL = load_machine("mill3")
@@ -205,6 +206,37 @@ def test_compiled_kernel_equals_the_step_by_step_model(seed):
     # The clamps were active: the model did not just follow a linear filter.
     assert np.max(np.abs(np.diff(velocity, axis=0))) >= 0.999 * np.min(fast.dv_limit[:3])
     assert np.max(np.abs(velocity[:, :3])) >= 0.999 * np.min(fast.v_limit[:3])
+
+
+def _kernel_arguments(rows: int, joints: int) -> list:
+    """Arguments of the C kernel in its order: references, state, gains, period, out."""
+    refs = [np.zeros((rows, joints)) for _ in range(3)]
+    return [*refs, *(np.zeros(joints) for _ in range(3)), *(np.ones(joints) for _ in range(7)), T,
+            np.empty((3, rows, joints))]
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    array.setflags(write=False)
+    return array
+
+
+@pytest.mark.parametrize("argument, replacement, error, message", [
+    (1, np.zeros((4, 2)), ValueError, "v_ref: expected 10 values, got 8"),
+    (14, np.empty((3, 4, 2)), ValueError, "out: expected 30 values, got 24"),
+    (6, np.ones(3), ValueError, "kp: expected 2 values, got 3"),
+    (0, np.zeros((5, 3)), ValueError, "p_ref: 15 values are not rows of 2 joints"),
+    (2, np.zeros((5, 2), dtype=np.float32), TypeError, "a_ref: expected a float64 array"),
+    (1, np.zeros((2, 5)).T, ValueError, "not C-contiguous"),
+    (4, _read_only(np.zeros(2)), ValueError, "read-only"),  # the kernel writes the state in place
+])
+def test_the_compiled_kernel_refuses_arrays_it_would_overrun(argument, replacement, error, message):
+    """The kernel works through raw pointers: every array's size, type and layout is
+    checked before it runs, so a wrong one raises instead of corrupting memory."""
+    args = _kernel_arguments(5, 2)
+    args[argument] = replacement
+    with pytest.raises(error, match=message):
+        _drive_kernel.run(*args)
+    _drive_kernel.run(*_kernel_arguments(5, 2))  # the same call with every array right runs
 
 
 def test_simulate_starts_at_rest_at_the_first_reference():

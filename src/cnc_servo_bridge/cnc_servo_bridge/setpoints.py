@@ -88,15 +88,18 @@ class SetpointBuffer:
             raise SetpointError("time_from_start must strictly increase")
         if times_ns[0] < now_ns:
             raise SetpointError(f"chunk starts {(now_ns - times_ns[0]) / 1e6:.3f} ms in the past")
-        bad = np.argwhere((p < self.lo) | (p > self.hi))
-        if len(bad):
-            i, j = bad[0]
+        # any() first: argwhere scans the whole chunk even when nothing is wrong
+        outside = (p < self.lo) | (p > self.hi)
+        if outside.any():
+            i, j = np.argwhere(outside)[0]
             raise SetpointError(f"{self.joints[j]} setpoint {p[i, j]:.6f} outside its travel")
-        bad = np.argwhere(np.abs(v) > self.v_max)
-        if len(bad):
+        too_fast = np.abs(v) > self.v_max
+        if too_fast.any():
+            bad = np.argwhere(too_fast)
             raise SetpointError(f"{self.joints[bad[0][1]]} velocity {v[tuple(bad[0])]:.4f} beyond its limit")
-        bad = np.argwhere(np.abs(a) > self.a_max)
-        if len(bad):
+        too_hard = np.abs(a) > self.a_max
+        if too_hard.any():
+            bad = np.argwhere(too_hard)
             raise SetpointError(f"{self.joints[bad[0][1]]} acceleration {a[tuple(bad[0])]:.3f} beyond its limit")
         prev_t, prev_p, prev_v = self._state_before(int(times_ns[0]), now_ns, reference)
         if np.all(np.abs(prev_v) <= REST_VELOCITY):
@@ -111,9 +114,9 @@ class SetpointBuffer:
         dt = np.diff(np.concatenate(([prev_t], times_ns))) / 1e9
         steps = np.abs(np.diff(np.vstack([prev_p, p]), axis=0))
         reach = self.v_max * dt[:, None] + 1e-9
-        bad = np.argwhere(steps > reach)
-        if len(bad):
-            i, j = bad[0]
+        jumps = steps > reach
+        if jumps.any():
+            i, j = np.argwhere(jumps)[0]
             raise SetpointError(f"{self.joints[j]} jumps {steps[i, j]:.6f} in {dt[i] * 1e3:.3f} ms")
         spacing = times_ns[1] - times_ns[0] if len(times_ns) > 1 else self._spacing()
         if times_ns[0] - prev_t > 1.5 * spacing and np.any(np.abs(prev_v) > REST_VELOCITY):

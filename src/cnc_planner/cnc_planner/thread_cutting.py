@@ -47,7 +47,7 @@ from dataclasses import dataclass
 from types import SimpleNamespace
 
 import numpy as np
-from ruckig import InputParameter, RuckigError, Trajectory
+from ruckig import InputParameter, Ruckig, RuckigError, Trajectory
 
 from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_msgs_py.units import deg, to_mm
@@ -485,23 +485,30 @@ def check_thread(spec: ThreadSpec, machine: Machine) -> None:
 
 
 # -- motion --------------------------------------------------------------------------------
-def _reach(start: np.ndarray, target: np.ndarray, machine: Machine, duration: float | None = None,
-           joints: tuple[str, ...] = JOINTS) -> Trajectory | None:
-    """Jerk-limited move between states (rows: joints; columns: p, v, a) at the ramps'
-    share of the jerk limit, or None if ruckig finds none."""
-    inp = InputParameter(len(joints))
-    inp.current_position, inp.current_velocity, inp.current_acceleration = start.T.tolist()
-    inp.target_position, inp.target_velocity, inp.target_acceleration = target.T.tolist()
-    limits = [axis_limits(machine.axis(j)) for j in joints]
-    inp.max_velocity = [lim.velocity for lim in limits]
-    inp.max_acceleration = [lim.acceleration for lim in limits]
-    inp.max_jerk = [RAMP_JERK_SHARE * lim.jerk for lim in limits]
-    if duration is not None:
-        inp.minimum_duration = duration
-    try:
-        return calculate(inp)
-    except (MotionError, RuckigError):
-        return None
+class _Ramps:
+    """Jerk-limited single-axis moves between states at the ramps' share of the jerk limit,
+    on one reused ruckig instance (building one costs more than its calculation)."""
+
+    def __init__(self, machine: Machine) -> None:
+        self._limits = {j: axis_limits(machine.axis(j)) for j in JOINTS}
+        self._ruckig = Ruckig(1)
+
+    def reach(self, joint: str, start: np.ndarray, target: np.ndarray,
+              duration: float | None = None) -> Trajectory | None:
+        """The move of ``joint`` from state start to state target (p, v, a), lasting at
+        least ``duration`` if given, or None if ruckig finds none."""
+        limits = self._limits[joint]
+        inp = InputParameter(1)
+        inp.current_position, inp.current_velocity, inp.current_acceleration = ([x] for x in start)
+        inp.target_position, inp.target_velocity, inp.target_acceleration = ([x] for x in target)
+        inp.max_velocity, inp.max_acceleration = [limits.velocity], [limits.acceleration]
+        inp.max_jerk = [RAMP_JERK_SHARE * limits.jerk]
+        if duration is not None:
+            inp.minimum_duration = duration
+        try:
+            return calculate(inp, self._ruckig)
+        except (MotionError, RuckigError):
+            return None
 
 
 def _evaluate(trajectory: Trajectory, t: np.ndarray) -> np.ndarray:
@@ -578,6 +585,7 @@ class ThreadCycle:
     def __init__(self, spec: ThreadSpec, machine: Machine, period: float, theta0: float,
                  drive: DriveModel | None = None) -> None:
         self.spec, self.machine, self.period, self.theta0 = spec, machine, period, theta0
+        self._ramps = _Ramps(machine)
         self.t_lead = round(LEAD_TIME / period) * period
         self.x_clear = spec.origin[0] + spec.clear_radius
         self.tracks: list[list[Stretch]] = [[(0.0, _held(self.x_clear))],
@@ -617,16 +625,16 @@ class ThreadCycle:
             t_go, z_from = self.t_lead, z0 + spec.start_z
         phase = TWO_PI * start / spec.starts
         psi_room = TWO_PI * (spec.start_z / spec.pitch - JOIN_ROOM_REVS)  # the latest join before the face
-        z_rest = np.array([[z_from, 0.0, 0.0]])
-        x_rest = np.array([[self.x_clear, 0.0, 0.0]])
+        z_rest, x_rest = [z_from, 0.0, 0.0], [self.x_clear, 0.0, 0.0]
         first = math.ceil(t_go / period - 1e-9) + 1
         for k, t_join, theta_ref, target in self._joins(cut, phase, psi_room, first,
                                                         first + math.ceil(MAX_AIR_S / period)):
-            fastest = _reach(z_rest, target[1:], self.machine, joints=("z",))
+            z_target = target[1].tolist()
+            fastest = self._ramps.reach("z", z_rest, z_target)
             if fastest is None or fastest.duration > t_join - t_go + 1e-12:
                 continue
-            back = _reach(z_rest, target[1:], self.machine, duration=t_join - t_go, joints=("z",))
-            plunge = _reach(x_rest, target[:1], self.machine, joints=("x",))
+            back = self._ramps.reach("z", z_rest, z_target, duration=t_join - t_go)
+            plunge = self._ramps.reach("x", x_rest, target[0].tolist())
             if (back is None or abs(back.duration - (t_join - t_go)) > 1e-9 or plunge is None
                     or t_join - plunge.duration < x_free - 1e-12):
                 continue
@@ -689,7 +697,7 @@ class ThreadCycle:
         depth_rate = spec.radial * _helix(spec, cut, self.psi(theta_ref, t))[1][:, 0]
         t_out = float(t[np.flatnonzero(depth_rate <= 1e-12)[0]])
         state = self._state(cut, theta_ref, t_out)
-        retract = _reach(state[:1], np.array([[self.x_clear, 0.0, 0.0]]), self.machine, joints=("x",))
+        retract = self._ramps.reach("x", state[0].tolist(), [self.x_clear, 0.0, 0.0])
         z = self.machine.axis("z")
         stop = velocity_trajectory(list(state[1, :1]), list(state[1, 1:2]), list(state[1, 2:]), [0.0],
                                    [z.max_velocity], [z.max_acceleration], [RAMP_JERK_SHARE * z.max_jerk])

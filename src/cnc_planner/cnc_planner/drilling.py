@@ -258,15 +258,17 @@ class _Job:
             for axis, value in zip(XY, hole):
                 if not machine.axes[axis].within_travel(value):
                     raise ValueError(f"holes[{i}]: {axis} = {value} m is outside the travel")
-            xy = _xy_move(machine, position, hole, cycle.xy_tolerance)
-            if xy.move and cycle.overlap and cycle.compensate_xy:
+            moved = _moved_axes(position, hole)
+            if moved and cycle.overlap and cycle.compensate_xy:
                 # The drive is linear up to its encoder counts: one correction per displacement.
-                key = tuple(round((xy.target[j] - dict(zip(XY, position))[j]) * 1e9) for j in xy.joints)
+                key = tuple(round((dict(zip(XY, hole))[j] - dict(zip(XY, position))[j]) * 1e9) for j in moved)
                 if key not in corrections:
-                    corrections[key] = _xy_headroom(machine, cycle.servo_period, xy, position, hole,
+                    corrections[key] = _xy_headroom(machine, cycle.servo_period, position, hole,
                                                     cycle.xy_tolerance)
                 shares, correction = corrections[key]
                 xy = replace(_xy_move(machine, position, hole, cycle.xy_tolerance, shares), correction=correction)
+            else:
+                xy = _xy_move(machine, position, hole, cycle.xy_tolerance)
             self.xy.append(xy)
             position = hole
 
@@ -488,11 +490,16 @@ def _xy_move(machine: Machine, p0: tuple[float, float], p1: tuple[float, float],
     return _XYMove(target, move, leave, arrive, tuple(joints))
 
 
+def _moved_axes(p0: tuple[float, float], p1: tuple[float, float]) -> list[str]:
+    """The X/Y axes an S1 move from p0 to p1 moves."""
+    return [j for j, a, b in zip(XY, p0, p1) if abs(a - b) > 1e-12]
+
+
 def _xy_limited(machine: Machine, p0: tuple[float, float], p1: tuple[float, float],
                 shares: tuple[float, float, float]) -> tuple[RuckigMove | None, list[str]]:
     """The ruckig move of S1 at shares of the velocity, acceleration and jerk limits, and
     the axes it moves (None and [] for no move)."""
-    joints = [j for j, a, b in zip(XY, p0, p1) if abs(a - b) > 1e-12]
+    joints = _moved_axes(p0, p1)
     if not joints:
         return None, []
     limits = [axis_limits(machine.axes[j]) for j in joints]
@@ -501,7 +508,7 @@ def _xy_limited(machine: Machine, p0: tuple[float, float], p1: tuple[float, floa
     return point_to_point([start[j] for j in joints], [target[j] for j in joints], limits), joints
 
 
-def _xy_headroom(machine: Machine, period: float, xy: _XYMove, p0: tuple[float, float],
+def _xy_headroom(machine: Machine, period: float, p0: tuple[float, float],
                  p1: tuple[float, float], tol: float) -> tuple[tuple[float, float, float], np.ndarray | None]:
     """Shares of the velocity, acceleration and jerk limits for one S1 move, and its
     correction, such that the compensated command stays within the axis limits: the

@@ -66,6 +66,7 @@ from cnc_servo_bridge.drive import DriveModel
 from .builder import PlanBuilder
 from .motion import Limits, RuckigMove, axis_limits, calculate, point_to_point
 from .peck import Peck, peck_moves
+from .plan_check import BLOCK_S
 from .timeline import Piece, Plan
 from .vibration import COMPENSATION_TAIL, Vibration, VibrationFeed, learn_correction, settled
 
@@ -578,6 +579,7 @@ class _XYCommand:
         self.entries: list[tuple[float, _XYMove, float]] = []  # (move start, move, correction start)
         self._cache: tuple[tuple, dict] | None = None
         self._reach: np.ndarray | None = None
+        self._held_after: list[dict[str, float]] = [dict(self.start)]  # _held's, per entry
 
     def add(self, t_s1: float, xy: _XYMove) -> None:
         lead = XY_COMMAND_LEAD * self.period if xy.correction is not None else 0.0
@@ -603,9 +605,7 @@ class _XYCommand:
         if self._cache is not None and self._cache[0] == key:
             return self._cache[1]
         first = self._first_entry(ts[0]) if len(ts) else len(self.entries)
-        held = dict(self.start)
-        for _, xy, _ in self.entries[:first]:
-            held.update({j: xy.target[j] for j in xy.joints})
+        held = self._held(first)
         out = {j: [np.full_like(ts, held[j]), np.zeros_like(ts), np.zeros_like(ts)] for j in XY}
         window = []
         for t_s1, xy, c0 in self.entries[first:]:
@@ -640,6 +640,14 @@ class _XYCommand:
                         out[j][q][lo:end] += np.interp(ts[lo:end] - c0, grid, xy.correction[q, :, dof])
         self._cache = (key, out)
         return out
+
+    def _held(self, first: int) -> dict[str, float]:
+        """Where the axes stand after the first ``first`` entries' moves (kept per entry:
+        a long cycle is sampled block by block)."""
+        while len(self._held_after) <= len(self.entries):
+            xy = self.entries[len(self._held_after) - 1][1]
+            self._held_after.append({**self._held_after[-1], **{j: xy.target[j] for j in xy.joints}})
+        return self._held_after[first]
 
     def _first_entry(self, t: float) -> int:
         """Index of the first entry whose move or correction may still act at time t."""
@@ -782,6 +790,21 @@ def _emit_conventional(job: _Job) -> Emit:
     return emit
 
 
+def _feedback(machine: Machine, plan: Plan, ts: np.ndarray, period: float) -> np.ndarray:
+    """X/Y/Z feedback (len(ts), 3) of the drives from rest at the plan's position at ts[0],
+    the plan sampled and simulated BLOCK_S at a time (the same values as in one piece,
+    without the whole cycle's setpoints in memory)."""
+    drives = DriveModel(machine, period, ("x", "y", "z"))
+    feedback = np.empty((len(ts), 3))
+    block = max(2, int(BLOCK_S / period))
+    for lo in range(0, len(ts), block):
+        p, v, a = plan.sample(ts[lo:lo + block], ("x", "y", "z"))
+        if lo == 0:
+            drives.reset(p[0])
+        feedback[lo:lo + block] = drives.run(p, v, a)[0]
+    return feedback
+
+
 def _lag_margins(job: _Job, plan: Plan, infos: list[dict], t0: float) -> tuple[np.ndarray, np.ndarray]:
     """Per hole, in servo periods, from the drive model's feedback: how late X/Y settles
     after the tip went below R (down) and how early X/Y leaves before the tip is back
@@ -790,8 +813,7 @@ def _lag_margins(job: _Job, plan: Plan, infos: list[dict], t0: float) -> tuple[n
     period = c.servo_period
     k0 = math.floor(t0 / period + 1e-9)
     ts = (k0 + np.arange(math.ceil((plan.duration - t0) / period) + 50)) * period
-    p, v, a = plan.sample(ts, ("x", "y", "z"))
-    feedback, _ = DriveModel(job.machine, period, ("x", "y", "z")).simulate(p, v, a)
+    feedback = _feedback(job.machine, plan, ts, period)
     below = feedback[:, 2] < c.r_z
     starts = np.searchsorted(ts, [info["s1"] for info in infos] + [ts[-1] + 1.0, ts[-1] + 1.0])
     down = np.zeros(job.n)

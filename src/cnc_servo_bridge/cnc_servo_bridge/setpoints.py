@@ -81,7 +81,8 @@ class SetpointBuffer:
             if np.ndim(values) != 2 or np.shape(values) != (len(times_ns), len(names)):
                 raise SetpointError(f"every point needs {what} for every joint")
         order = [names.index(j) for j in self.joints]
-        p, v, a = p[:, order], v[:, order], a[:, order]
+        if order != list(range(len(order))):  # already in the machine's order: no copies
+            p, v, a = p[:, order], v[:, order], a[:, order]
         if not (np.isfinite(p).all() and np.isfinite(v).all() and np.isfinite(a).all()):
             raise SetpointError("chunk holds a NaN or infinite value")
         if len(times_ns) > 1 and np.any(np.diff(times_ns) <= 0):
@@ -112,7 +113,9 @@ class SetpointBuffer:
                 raise SetpointError(f"{self.joints[j]}: a trajectory from rest must start at rest at "
                                     f"{prev_p[j]:.6f}, got {p[0, j]:.6f} moving {v[0, j]:.4f}")
         dt = np.diff(np.concatenate(([prev_t], times_ns))) / 1e9
-        steps = np.abs(np.diff(np.vstack([prev_p, p]), axis=0))
+        steps = np.empty_like(p)  # |p[i] - p[i-1]|, from the point before the chunk
+        steps[0] = np.abs(p[0] - prev_p)
+        np.abs(np.diff(p, axis=0), out=steps[1:])
         reach = self.v_max * dt[:, None] + 1e-9
         jumps = steps > reach
         if jumps.any():

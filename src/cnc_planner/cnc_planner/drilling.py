@@ -66,6 +66,7 @@ from cnc_servo_bridge.drive import DriveModel
 from .builder import PlanBuilder
 from .motion import Limits, RuckigMove, axis_limits, calculate, point_to_point
 from .peck import Peck, peck_moves
+from .plan_check import BLOCK_S
 from .timeline import Piece, Plan
 from .vibration import COMPENSATION_TAIL, Vibration, VibrationFeed, learn_correction, settled
 
@@ -258,15 +259,17 @@ class _Job:
             for axis, value in zip(XY, hole):
                 if not machine.axes[axis].within_travel(value):
                     raise ValueError(f"holes[{i}]: {axis} = {value} m is outside the travel")
-            xy = _xy_move(machine, position, hole, cycle.xy_tolerance)
-            if xy.move and cycle.overlap and cycle.compensate_xy:
+            moved = _moved_axes(position, hole)
+            if moved and cycle.overlap and cycle.compensate_xy:
                 # The drive is linear up to its encoder counts: one correction per displacement.
-                key = tuple(round((xy.target[j] - dict(zip(XY, position))[j]) * 1e9) for j in xy.joints)
+                key = tuple(round((dict(zip(XY, hole))[j] - dict(zip(XY, position))[j]) * 1e9) for j in moved)
                 if key not in corrections:
-                    corrections[key] = _xy_headroom(machine, cycle.servo_period, xy, position, hole,
+                    corrections[key] = _xy_headroom(machine, cycle.servo_period, position, hole,
                                                     cycle.xy_tolerance)
                 shares, correction = corrections[key]
                 xy = replace(_xy_move(machine, position, hole, cycle.xy_tolerance, shares), correction=correction)
+            else:
+                xy = _xy_move(machine, position, hole, cycle.xy_tolerance)
             self.xy.append(xy)
             position = hole
 
@@ -488,11 +491,16 @@ def _xy_move(machine: Machine, p0: tuple[float, float], p1: tuple[float, float],
     return _XYMove(target, move, leave, arrive, tuple(joints))
 
 
+def _moved_axes(p0: tuple[float, float], p1: tuple[float, float]) -> list[str]:
+    """The X/Y axes an S1 move from p0 to p1 moves."""
+    return [j for j, a, b in zip(XY, p0, p1) if abs(a - b) > 1e-12]
+
+
 def _xy_limited(machine: Machine, p0: tuple[float, float], p1: tuple[float, float],
                 shares: tuple[float, float, float]) -> tuple[RuckigMove | None, list[str]]:
     """The ruckig move of S1 at shares of the velocity, acceleration and jerk limits, and
     the axes it moves (None and [] for no move)."""
-    joints = [j for j, a, b in zip(XY, p0, p1) if abs(a - b) > 1e-12]
+    joints = _moved_axes(p0, p1)
     if not joints:
         return None, []
     limits = [axis_limits(machine.axes[j]) for j in joints]
@@ -501,7 +509,7 @@ def _xy_limited(machine: Machine, p0: tuple[float, float], p1: tuple[float, floa
     return point_to_point([start[j] for j in joints], [target[j] for j in joints], limits), joints
 
 
-def _xy_headroom(machine: Machine, period: float, xy: _XYMove, p0: tuple[float, float],
+def _xy_headroom(machine: Machine, period: float, p0: tuple[float, float],
                  p1: tuple[float, float], tol: float) -> tuple[tuple[float, float, float], np.ndarray | None]:
     """Shares of the velocity, acceleration and jerk limits for one S1 move, and its
     correction, such that the compensated command stays within the axis limits: the
@@ -571,6 +579,7 @@ class _XYCommand:
         self.entries: list[tuple[float, _XYMove, float]] = []  # (move start, move, correction start)
         self._cache: tuple[tuple, dict] | None = None
         self._reach: np.ndarray | None = None
+        self._held_after: list[dict[str, float]] = [dict(self.start)]  # _held's, per entry
 
     def add(self, t_s1: float, xy: _XYMove) -> None:
         lead = XY_COMMAND_LEAD * self.period if xy.correction is not None else 0.0
@@ -596,9 +605,7 @@ class _XYCommand:
         if self._cache is not None and self._cache[0] == key:
             return self._cache[1]
         first = self._first_entry(ts[0]) if len(ts) else len(self.entries)
-        held = dict(self.start)
-        for _, xy, _ in self.entries[:first]:
-            held.update({j: xy.target[j] for j in xy.joints})
+        held = self._held(first)
         out = {j: [np.full_like(ts, held[j]), np.zeros_like(ts), np.zeros_like(ts)] for j in XY}
         window = []
         for t_s1, xy, c0 in self.entries[first:]:
@@ -633,6 +640,14 @@ class _XYCommand:
                         out[j][q][lo:end] += np.interp(ts[lo:end] - c0, grid, xy.correction[q, :, dof])
         self._cache = (key, out)
         return out
+
+    def _held(self, first: int) -> dict[str, float]:
+        """Where the axes stand after the first ``first`` entries' moves (kept per entry:
+        a long cycle is sampled block by block)."""
+        while len(self._held_after) <= len(self.entries):
+            xy = self.entries[len(self._held_after) - 1][1]
+            self._held_after.append({**self._held_after[-1], **{j: xy.target[j] for j in xy.joints}})
+        return self._held_after[first]
 
     def _first_entry(self, t: float) -> int:
         """Index of the first entry whose move or correction may still act at time t."""
@@ -775,6 +790,21 @@ def _emit_conventional(job: _Job) -> Emit:
     return emit
 
 
+def _feedback(machine: Machine, plan: Plan, ts: np.ndarray, period: float) -> np.ndarray:
+    """X/Y/Z feedback (len(ts), 3) of the drives from rest at the plan's position at ts[0],
+    the plan sampled and simulated BLOCK_S at a time (the same values as in one piece,
+    without the whole cycle's setpoints in memory)."""
+    drives = DriveModel(machine, period, ("x", "y", "z"))
+    feedback = np.empty((len(ts), 3))
+    block = max(2, int(BLOCK_S / period))
+    for lo in range(0, len(ts), block):
+        p, v, a = plan.sample(ts[lo:lo + block], ("x", "y", "z"))
+        if lo == 0:
+            drives.reset(p[0])
+        feedback[lo:lo + block] = drives.run(p, v, a)[0]
+    return feedback
+
+
 def _lag_margins(job: _Job, plan: Plan, infos: list[dict], t0: float) -> tuple[np.ndarray, np.ndarray]:
     """Per hole, in servo periods, from the drive model's feedback: how late X/Y settles
     after the tip went below R (down) and how early X/Y leaves before the tip is back
@@ -783,8 +813,7 @@ def _lag_margins(job: _Job, plan: Plan, infos: list[dict], t0: float) -> tuple[n
     period = c.servo_period
     k0 = math.floor(t0 / period + 1e-9)
     ts = (k0 + np.arange(math.ceil((plan.duration - t0) / period) + 50)) * period
-    p, v, a = plan.sample(ts, ("x", "y", "z"))
-    feedback, _ = DriveModel(job.machine, period, ("x", "y", "z")).simulate(p, v, a)
+    feedback = _feedback(job.machine, plan, ts, period)
     below = feedback[:, 2] < c.r_z
     starts = np.searchsorted(ts, [info["s1"] for info in infos] + [ts[-1] + 1.0, ts[-1] + 1.0])
     down = np.zeros(job.n)

@@ -541,7 +541,7 @@ def plan_thread_job(job: SimpleNamespace, machine: Machine, builder: PlanBuilder
     except ThreadError as err:
         field, _, reason = str(err).partition(": ")
         raise JobError(field, reason) from err
-    plan_thread(builder, spec)
+    plan_thread(builder, spec, checked=True)
 
 
 PLANNERS: dict[str, Callable[[SimpleNamespace, Machine, PlanBuilder, Kinematics], None]] = {

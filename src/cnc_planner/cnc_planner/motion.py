@@ -112,15 +112,16 @@ def point_to_point(start: list[float], target: list[float], limits: list[Limits]
     return RuckigMove(calculate(inp))
 
 
-def calculate(inp: InputParameter) -> Trajectory:
-    """Run ruckig offline on a prepared input.
+def calculate(inp: InputParameter, ruckig: Ruckig | None = None) -> Trajectory:
+    """Run ruckig offline on a prepared input (with ``ruckig`` of as many degrees of
+    freedom, if given: a search that calls it a thousand times saves building one each time).
 
     Raises:
         MotionError: ruckig found no trajectory.
     """
     trajectory = Trajectory(inp.degrees_of_freedom)
     try:
-        result = Ruckig(inp.degrees_of_freedom).calculate(inp, trajectory)
+        result = (ruckig or Ruckig(inp.degrees_of_freedom)).calculate(inp, trajectory)
     except RuckigError as err:  # invalid input is raised, not returned
         raise MotionError(f"ruckig could not plan the move: {str(err).strip()}") from err
     if result not in (Result.Working, Result.Finished):

@@ -55,14 +55,14 @@ def check_plan(plan: Plan, machine: Machine, period: float, field: str) -> None:
         except SetpointError as err:
             raise JobError(field, f"the plan breaks the bridge's setpoint rules: {err}") from err
         measured, _, error = drives.run(p, v, a)
-        tripped = np.argwhere(np.abs(error) > limit)
-        if len(tripped):
-            i, j = tripped[0]
+        tripped = np.abs(error) > limit
+        if tripped.any():  # argwhere only then: it scans the whole block even when nothing is wrong
+            i, j = np.argwhere(tripped)[0]
             raise JobError(field, f"{plan.joints[j]}: the drive would trip its following error limit "
                                   f"({abs(error[i, j]):.6g} > {limit[j]:.6g}) at {k[i] * period:.3f} s of the plan")
-        outside = np.argwhere((measured < buffer.lo) | (measured > buffer.hi))
-        if len(outside):
-            i, j = outside[0]
+        outside = (measured < buffer.lo) | (measured > buffer.hi)
+        if outside.any():
+            i, j = np.argwhere(outside)[0]
             raise JobError(field, f"{plan.joints[j]}: the drive would overshoot its travel "
                                   f"({measured[i, j]:.6f}) at {k[i] * period:.3f} s of the plan")
         now_ns, state = int(k[-1]) * period_ns, (p[-1], v[-1])

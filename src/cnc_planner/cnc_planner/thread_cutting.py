@@ -47,11 +47,12 @@ from dataclasses import dataclass
 from types import SimpleNamespace
 
 import numpy as np
-from ruckig import InputParameter, RuckigError, Trajectory
+from ruckig import InputParameter, Ruckig, RuckigError, Trajectory
 
 from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_msgs_py.units import deg, to_mm
 from cnc_servo_bridge.drive import DriveModel
+from cnc_servo_bridge.jerk_profile import TrajectorySampler
 from cnc_servo_bridge.stop import velocity_trajectory
 from cnc_servo_bridge.thread_analysis import (
     CHIP_LIMIT_REVS, CUT_TOLERANCE, cuts_against_envelope, longest_runs,
@@ -80,6 +81,7 @@ LEAD_TIME = 0.06  # s at rest before the ramp: the band-limited compensation lea
 SETTLED_COUNTS = 0.25  # encoder counts: a command correction below this has settled
 MAX_AIR_S = 3.0  # s: longest the search for a pass's join looks beyond its earliest start
 JOIN_ROOM_REVS = 0.25  # revolutions of helix, at least, between joining it and the face
+JOIN_BATCH = 64  # candidate joins whose helix states are evaluated at once
 MAX_PASS_REVS = 2000  # spindle revolutions of one pass: checks and plans sample every one
 MAX_PASS_S = 600.0  # s of helix per pass: a longer pass is a mistyped pitch or speed
 
@@ -483,29 +485,35 @@ def check_thread(spec: ThreadSpec, machine: Machine) -> None:
 
 
 # -- motion --------------------------------------------------------------------------------
-def _reach(start: np.ndarray, target: np.ndarray, machine: Machine, duration: float | None = None,
-           joints: tuple[str, ...] = JOINTS) -> Trajectory | None:
-    """Jerk-limited move between states (rows: joints; columns: p, v, a) at the ramps'
-    share of the jerk limit, or None if ruckig finds none."""
-    inp = InputParameter(len(joints))
-    inp.current_position, inp.current_velocity, inp.current_acceleration = (list(c) for c in start.T)
-    inp.target_position, inp.target_velocity, inp.target_acceleration = (list(c) for c in target.T)
-    limits = [axis_limits(machine.axis(j)) for j in joints]
-    inp.max_velocity = [lim.velocity for lim in limits]
-    inp.max_acceleration = [lim.acceleration for lim in limits]
-    inp.max_jerk = [RAMP_JERK_SHARE * lim.jerk for lim in limits]
-    if duration is not None:
-        inp.minimum_duration = duration
-    try:
-        return calculate(inp)
-    except (MotionError, RuckigError):
-        return None
+class _Ramps:
+    """Jerk-limited single-axis moves between states at the ramps' share of the jerk limit,
+    on one reused ruckig instance (building one costs more than its calculation)."""
+
+    def __init__(self, machine: Machine) -> None:
+        self._limits = {j: axis_limits(machine.axis(j)) for j in JOINTS}
+        self._ruckig = Ruckig(1)
+
+    def reach(self, joint: str, start: np.ndarray, target: np.ndarray,
+              duration: float | None = None) -> Trajectory | None:
+        """The move of ``joint`` from state start to state target (p, v, a), lasting at
+        least ``duration`` if given, or None if ruckig finds none."""
+        limits = self._limits[joint]
+        inp = InputParameter(1)
+        inp.current_position, inp.current_velocity, inp.current_acceleration = ([x] for x in start)
+        inp.target_position, inp.target_velocity, inp.target_acceleration = ([x] for x in target)
+        inp.max_velocity, inp.max_acceleration = [limits.velocity], [limits.acceleration]
+        inp.max_jerk = [RAMP_JERK_SHARE * limits.jerk]
+        if duration is not None:
+            inp.minimum_duration = duration
+        try:
+            return calculate(inp, self._ruckig)
+        except (MotionError, RuckigError):
+            return None
 
 
 def _evaluate(trajectory: Trajectory, t: np.ndarray) -> np.ndarray:
     """(3, len(t), dofs): position, velocity, acceleration; the end state after the end."""
-    t = np.minimum(t, trajectory.duration)
-    return np.array([trajectory.at_time(float(ti)) for ti in t]).transpose(1, 0, 2)
+    return TrajectorySampler(trajectory).sample(np.minimum(t, trajectory.duration))
 
 
 def _helix(spec: ThreadSpec, cut: Pass, psi: np.ndarray) -> np.ndarray:
@@ -535,7 +543,8 @@ def _held(position: float) -> Stretch:
 
 
 def _moving(start: float, trajectory: Trajectory) -> Stretch:
-    return lambda t: _evaluate(trajectory, t - start)[:, :, 0]
+    sampler = TrajectorySampler(trajectory)  # read once: a stretch is sampled many times
+    return lambda t: sampler.sample(np.minimum(t - start, sampler.duration))[:, :, 0]
 
 
 @dataclass
@@ -576,6 +585,7 @@ class ThreadCycle:
     def __init__(self, spec: ThreadSpec, machine: Machine, period: float, theta0: float,
                  drive: DriveModel | None = None) -> None:
         self.spec, self.machine, self.period, self.theta0 = spec, machine, period, theta0
+        self._ramps = _Ramps(machine)
         self.t_lead = round(LEAD_TIME / period) * period
         self.x_clear = spec.origin[0] + spec.clear_radius
         self.tracks: list[list[Stretch]] = [[(0.0, _held(self.x_clear))],
@@ -615,19 +625,16 @@ class ThreadCycle:
             t_go, z_from = self.t_lead, z0 + spec.start_z
         phase = TWO_PI * start / spec.starts
         psi_room = TWO_PI * (spec.start_z / spec.pitch - JOIN_ROOM_REVS)  # the latest join before the face
-        z_rest = np.array([[z_from, 0.0, 0.0]])
-        x_rest = np.array([[self.x_clear, 0.0, 0.0]])
+        z_rest, x_rest = [z_from, 0.0, 0.0], [self.x_clear, 0.0, 0.0]
         first = math.ceil(t_go / period - 1e-9) + 1
-        for k in range(first, first + math.ceil(MAX_AIR_S / period)):
-            t_join = k * period
-            theta_ref = phase + TWO_PI * math.ceil(
-                (self.theta0 + spec.spindle_speed * t_join - psi_room - phase) / TWO_PI)
-            target = self._state(cut, theta_ref, t_join)
-            fastest = _reach(z_rest, target[1:], self.machine, joints=("z",))
+        for k, t_join, theta_ref, target in self._joins(cut, phase, psi_room, first,
+                                                        first + math.ceil(MAX_AIR_S / period)):
+            z_target = target[1].tolist()
+            fastest = self._ramps.reach("z", z_rest, z_target)
             if fastest is None or fastest.duration > t_join - t_go + 1e-12:
                 continue
-            back = _reach(z_rest, target[1:], self.machine, duration=t_join - t_go, joints=("z",))
-            plunge = _reach(x_rest, target[:1], self.machine, joints=("x",))
+            back = self._ramps.reach("z", z_rest, z_target, duration=t_join - t_go)
+            plunge = self._ramps.reach("x", x_rest, target[0].tolist())
             if (back is None or abs(back.duration - (t_join - t_go)) > 1e-9 or plunge is None
                     or t_join - plunge.duration < x_free - 1e-12):
                 continue
@@ -639,9 +646,9 @@ class ThreadCycle:
             over_stock = (s * (z - z0) >= 0.0) & (s * (z - z0) <= s * spec.end_z)
             if np.any(over_stock & (depth > 0.0)):
                 continue
+            on_helix = self._on_helix(cut, theta_ref)
             for j in range(2):
-                self.tracks[j] += tried[j] + [(t_join, lambda t, c=cut, r=theta_ref, j=j:
-                                               _helix(spec, c, self.psi(r, t))[:, :, j])]
+                self.tracks[j] += tried[j] + [(t_join, lambda t, j=j: on_helix(t)[:, :, j])]
             t_out, retract, stop = self._exit(cut, theta_ref, t_join)
             self.tracks[0].append((t_out, _moving(t_out, retract)))
             self.tracks[1].append((t_out, _moving(t_out, stop)))
@@ -651,6 +658,32 @@ class ThreadCycle:
             f"thread.start_z: the axes cannot reach the helix of pass {cut.index + 1} in front of the "
             f"face within {MAX_AIR_S:g} s"
         )
+
+    def _on_helix(self, cut: Pass, theta_ref: float) -> Callable[[np.ndarray], np.ndarray]:
+        """Cycle times -> _helix of the pass joined at theta_ref; x and z ask for the same
+        instants one after the other, so the last answer is kept (for exactly those instants:
+        grids that differ by rounding only must not share it)."""
+        last = [np.empty(0), _helix(self.spec, cut, np.empty(0))]  # instants, helix there
+
+        def on_helix(t: np.ndarray) -> np.ndarray:
+            if not np.array_equal(last[0], t):
+                last[:] = t.copy(), _helix(self.spec, cut, self.psi(theta_ref, t))
+            return last[1]
+
+        return on_helix
+
+    def _joins(self, cut: Pass, phase: float, psi_room: float, first: int, stop: int):
+        """Candidate joins k in [first, stop) in order: (k, t_join, theta_ref of the latest
+        helix revolution joined before psi_room, the helix state there (rows x, z; columns
+        p, v, a)), evaluated JOIN_BATCH at a time: most are rejected on ruckig's fastest
+        time alone."""
+        spec = self.spec
+        for lo in range(first, stop, JOIN_BATCH):
+            t_joins = np.arange(lo, min(stop, lo + JOIN_BATCH)) * self.period
+            theta_refs = phase + TWO_PI * np.ceil(
+                (self.theta0 + spec.spindle_speed * t_joins - psi_room - phase) / TWO_PI)
+            targets = _helix(spec, cut, self.psi(theta_refs, t_joins)).transpose(1, 2, 0)
+            yield from zip(range(lo, lo + len(t_joins)), t_joins.tolist(), theta_refs.tolist(), targets)
 
     def _exit(self, cut: Pass, theta_ref: float, t_join: float) -> tuple[float, Trajectory, Trajectory]:
         """Leave the helix past end_z when the vibration retreats: x out to the clearance
@@ -664,7 +697,7 @@ class ThreadCycle:
         depth_rate = spec.radial * _helix(spec, cut, self.psi(theta_ref, t))[1][:, 0]
         t_out = float(t[np.flatnonzero(depth_rate <= 1e-12)[0]])
         state = self._state(cut, theta_ref, t_out)
-        retract = _reach(state[:1], np.array([[self.x_clear, 0.0, 0.0]]), self.machine, joints=("x",))
+        retract = self._ramps.reach("x", state[0].tolist(), [self.x_clear, 0.0, 0.0])
         z = self.machine.axis("z")
         stop = velocity_trajectory(list(state[1, :1]), list(state[1, 1:2]), list(state[1, 2:]), [0.0],
                                    [z.max_velocity], [z.max_acceleration], [RAMP_JERK_SHARE * z.max_jerk])
@@ -672,12 +705,13 @@ class ThreadCycle:
 
     @staticmethod
     def _sample(track: list[Stretch], t: np.ndarray) -> np.ndarray:
-        """(3, len(t)) of one axis: each stretch from its start until the next begins."""
+        """(3, len(t)) of one axis at sorted t: each stretch from its start until the next
+        begins (the first one before its start too)."""
         out = np.empty((3, t.size))
-        which = np.searchsorted([begin for begin, _ in track], t, side="right") - 1
-        for i in np.unique(which):
-            sel = which == i
-            out[:, sel] = track[max(int(i), 0)][1](t[sel])
+        bounds = np.searchsorted(t, [begin for begin, _ in track[1:]], side="left").tolist()
+        for (_, stretch), lo, hi in zip(track, [0] + bounds, bounds + [t.size]):
+            if hi > lo:
+                out[:, lo:hi] = stretch(t[lo:hi])
         return out
 
     def ideal(self, t: np.ndarray) -> np.ndarray:
@@ -717,7 +751,7 @@ class ThreadCycle:
 
 
 def plan_thread(builder: PlanBuilder, spec: ThreadSpec, servo_period: float = 1e-3,
-                compensate: bool = True) -> list[dict]:
+                compensate: bool = True, checked: bool = False) -> list[dict]:
     """Append the whole thread cycle to the builder; returns one JSON-ready dict per pass.
 
     Spindle to speed; the tool to the cycle start (clearance radius, start_z; from wherever
@@ -725,12 +759,16 @@ def plan_thread(builder: PlanBuilder, spec: ThreadSpec, servo_period: float = 1e
     unless `compensate` is False); finally back to the cycle start. Events: "thread_pass"
     as each pass's air path begins, "sync" where it is on its helix.
 
+    ``checked``: the caller has run check_thread on this spec already (it costs a tenth of
+    the plan: the chip-breaking check samples every revolution of every pass).
+
     Raises:
         ThreadError: check_thread's rejections (before anything is added), or a pass whose
             helix cannot be reached before the face (the builder is then half-built: discard it).
     """
     machine = builder.machine
-    check_thread(spec, machine)
+    if not checked:
+        check_thread(spec, machine)
     x_origin, z_origin = spec.origin
     drive = DriveModel(machine, servo_period, joints=JOINTS) if compensate else None
     spindle = builder.timelines[SPINDLE]

@@ -86,27 +86,52 @@ class JointTimeline:
 
         self.add(Piece(start, duration, hold), position)
 
-    def sample(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Position, velocity and acceleration at sorted instants ts."""
-        p = np.empty_like(ts)
-        v = np.empty_like(ts)
-        a = np.zeros_like(ts)
-        # Coasting everywhere first (piece i's coast state applies after piece i-1 ends).
-        if self._coast_array is None or len(self._coast_array) != len(self._coast):
-            self._coast_array = np.asarray(self._coast)  # (t, p, v) rows, built once per change
-        coast_index = np.searchsorted(self._coast_array[:, 0], ts, side="right") - 1
-        coast = self._coast_array[np.maximum(coast_index, 0)]
-        v[:] = coast[:, 2]
-        p[:] = coast[:, 1] + coast[:, 2] * (ts - coast[:, 0])
-        first = max(bisect.bisect_right(self._starts, ts[0]) - 1, 0)
-        last = bisect.bisect_right(self._starts, ts[-1])
+    def sample(self, ts: np.ndarray, out: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position, velocity and acceleration at sorted instants ts, written into ``out``
+        (three arrays of len(ts), e.g. columns of a plan's sample) if given."""
+        p, v, a = out if out is not None else (np.empty_like(ts), np.empty_like(ts), np.empty_like(ts))
+        first = max(bisect.bisect_right(self._starts, ts[0]) - 1, 0) if len(ts) else 0
+        last = bisect.bisect_right(self._starts, ts[-1]) if len(ts) else 0
         pieces = self.pieces[first:last]
         # Every piece's index range in one call; only pieces that hold instants are sampled.
         bounds = np.searchsorted(ts, [(piece.start, piece.end) for piece in pieces], side="left")
-        for piece, (lo, hi) in zip(pieces, bounds):
+        bounds = bounds.reshape(len(pieces), 2)
+        # Coasting only where no piece is (the pieces overwrite the rest): piece i's coast
+        # state applies after piece i-1 ends.
+        gap_lo, gap_hi = self._gaps(bounds, len(ts))
+        if len(gap_lo):
+            if self._coast_array is None or len(self._coast_array) != len(self._coast):
+                self._coast_array = np.asarray(self._coast)  # (t, p, v) rows, built once per change
+            coast_t = self._coast_array[:, 0]
+            first_state = np.searchsorted(coast_t, ts[gap_lo], side="right") - 1
+            last_state = np.searchsorted(coast_t, ts[gap_hi - 1], side="right") - 1
+            for lo, hi, i, i_last in zip(*(x.tolist() for x in (gap_lo, gap_hi, first_state, last_state))):
+                # one coast state over the whole gap, or (a piece shorter than the gap between
+                # two instants ended inside it) one per instant
+                t0, p0, v0 = self._coast_array[max(i, 0)] if i == i_last else self._coast_at(ts[lo:hi]).T
+                v[lo:hi] = v0
+                p[lo:hi] = p0 + v0 * (ts[lo:hi] - t0)
+                a[lo:hi] = 0.0
+        for piece, (lo, hi) in zip(pieces, bounds.tolist()):
             if hi > lo:
                 p[lo:hi], v[lo:hi], a[lo:hi] = piece.sample(ts[lo:hi] - piece.start)
         return p, v, a
+
+    def _coast_at(self, ts: np.ndarray) -> np.ndarray:
+        """The (t, p, v) coast state in force at each of the instants ts."""
+        index = np.searchsorted(self._coast_array[:, 0], ts, side="right") - 1
+        return self._coast_array[np.maximum(index, 0)]
+
+    @staticmethod
+    def _gaps(bounds: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """The index ranges [lo, hi) in [0, n) outside every [lo, hi) of bounds (rows sorted
+        by lo), as two arrays."""
+        # Gap i runs from the furthest end of the pieces before piece i to its start.
+        gap_lo = np.concatenate(([0], np.maximum.accumulate(bounds[:, 1]))).astype(np.intp)
+        gap_hi = np.concatenate((bounds[:, 0], [n])).astype(np.intp)
+        keep = gap_hi > gap_lo
+        return gap_lo[keep], gap_hi[keep]
 
 
 @dataclass
@@ -129,7 +154,7 @@ class Plan:
         joints = self.joints if joints is None else joints
         out = np.empty((3, len(ts), len(joints)))
         for i, j in enumerate(joints):
-            out[0, :, i], out[1, :, i], out[2, :, i] = self.timelines[j].sample(ts)
+            self.timelines[j].sample(ts, out=(out[0, :, i], out[1, :, i], out[2, :, i]))
         return out[0], out[1], out[2]
 
     def start_position(self) -> dict[str, float]:

@@ -306,6 +306,25 @@ def test_timeline_coasting_hand_computed():
         timeline.add(Piece(1.0, 0.2, ramp), 0.0)
 
 
+def test_timeline_coasts_after_a_piece_between_two_instants():
+    """A piece that holds no instant still sets the coast after it, inside one gap between
+    other pieces (the coast is evaluated per gap, and per instant where it changes)."""
+    timeline = JointTimeline(0.0)
+
+    def push(t):  # from 0 at rest to 0.25 at velocity 1 within 0.5 s
+        return t**2, 2 * t, np.full_like(t, 2.0)
+
+    def hold(t):
+        return np.full_like(t, 9.0), np.zeros_like(t), np.zeros_like(t)
+
+    timeline.add(Piece(0.25, 0.5, push), end_position=0.25, end_velocity=1.0)  # between 0 and 1
+    timeline.add(Piece(3.0, 1.0, hold), end_position=9.0)
+    p, v, a = timeline.sample(np.array([0.0, 1.0, 2.0, 3.0, 4.0, 5.0]))
+    assert p.tolist() == [0.0, 0.5, 1.5, 9.0, 9.0, 9.0]
+    assert v.tolist() == [0.0, 1.0, 1.0, 0.0, 0.0, 0.0]
+    assert a.tolist() == [0.0] * 6
+
+
 def test_dwell_holds_every_linear_axis():
     job = parse_job(json.loads(json.dumps({
         "schema": "cnc_job/1", "job_id": "dwell-1", "kind": "move", "machine": "mill3",

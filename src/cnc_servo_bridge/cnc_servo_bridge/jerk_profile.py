@@ -9,6 +9,7 @@ same case split as ruckig's `at_time`, so the results equal it up to float round
 """
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,15 +35,24 @@ def _integrate(t, p0, v0, a0, j):
             a0 + t * j)
 
 
+def _integrate_into(t, p0, v0, a0, j) -> np.ndarray:
+    """_integrate as one (3, len(t)) array, t * j computed once (the same values)."""
+    out = np.empty((3, len(t)))
+    tj = t * j
+    np.add(a0, tj, out=out[2])
+    out[1] = v0 + t * (a0 + tj / 2)
+    out[0] = p0 + t * (v0 + t * (a0 / 2 + tj / 6))
+    return out
+
+
 def _phases(profile) -> _Phases:
     brake = profile.brake
-    t_sum = np.cumsum(np.asarray(profile.t, dtype=float))
-    j = np.append(np.asarray(profile.j, dtype=float), 0.0)
+    t_sum = list(itertools.accumulate(profile.t))  # in order, as numpy's cumsum adds
     return _Phases(
         brake_duration=float(brake.duration), brake_t0=float(brake.t[0]),
         brake_pvaj=np.array([brake.p, brake.v, brake.a, brake.j], dtype=float),
-        t_sum=t_sum, start=np.concatenate(([0.0], t_sum)),
-        pvaj=np.array([profile.p, profile.v, profile.a, j], dtype=float),
+        t_sum=np.array(t_sum, dtype=float), start=np.array([0.0, *t_sum], dtype=float),
+        pvaj=np.array([profile.p, profile.v, profile.a, [*profile.j, 0.0]], dtype=float),
     )
 
 
@@ -59,6 +69,8 @@ class TrajectorySampler:
     def sample(self, t: np.ndarray) -> np.ndarray:
         """Array (3, len(t), dofs): position, velocity, acceleration at the instants t (s)."""
         t = np.asarray(t, dtype=float)
+        if len(self._phases) == 1:  # the usual case: no copy into a (3, len(t), 1) array
+            return self._sample_dof(self._phases[0], t)[:, :, None]
         out = np.empty((3, len(t), len(self._phases)))
         for dof, ph in enumerate(self._phases):
             out[:, :, dof] = self._sample_dof(ph, t)
@@ -69,8 +81,9 @@ class TrajectorySampler:
             # Phase 7 (past the last phase) is the constant-acceleration tail, and with no
             # brake ruckig's "after the end" case is that phase exactly (even where the
             # phases' sum rounds a little past the trajectory's duration).
-            index = np.where(t >= self.duration, 7, np.searchsorted(ph.t_sum, t, side="right"))
-            return np.array(_integrate(t - ph.start[index], *ph.pvaj[:, index]))
+            index = np.searchsorted(ph.t_sum, t, side="right")
+            index[t >= self.duration] = 7
+            return _integrate_into(t - ph.start[index], *ph.pvaj[:, index])
         p0, v0, a0, j = ph.pvaj[:, np.full(len(t), 7)]
         dt = t - (ph.brake_duration + ph.t_sum[-1])  # past the end: from the final state
         inside = t < self.duration

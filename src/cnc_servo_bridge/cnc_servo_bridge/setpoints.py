@@ -81,22 +81,26 @@ class SetpointBuffer:
             if np.ndim(values) != 2 or np.shape(values) != (len(times_ns), len(names)):
                 raise SetpointError(f"every point needs {what} for every joint")
         order = [names.index(j) for j in self.joints]
-        p, v, a = p[:, order], v[:, order], a[:, order]
+        if order != list(range(len(order))):  # already in the machine's order: no copies
+            p, v, a = p[:, order], v[:, order], a[:, order]
         if not (np.isfinite(p).all() and np.isfinite(v).all() and np.isfinite(a).all()):
             raise SetpointError("chunk holds a NaN or infinite value")
         if len(times_ns) > 1 and np.any(np.diff(times_ns) <= 0):
             raise SetpointError("time_from_start must strictly increase")
         if times_ns[0] < now_ns:
             raise SetpointError(f"chunk starts {(now_ns - times_ns[0]) / 1e6:.3f} ms in the past")
-        bad = np.argwhere((p < self.lo) | (p > self.hi))
-        if len(bad):
-            i, j = bad[0]
+        # any() first: argwhere scans the whole chunk even when nothing is wrong
+        outside = (p < self.lo) | (p > self.hi)
+        if outside.any():
+            i, j = np.argwhere(outside)[0]
             raise SetpointError(f"{self.joints[j]} setpoint {p[i, j]:.6f} outside its travel")
-        bad = np.argwhere(np.abs(v) > self.v_max)
-        if len(bad):
+        too_fast = np.abs(v) > self.v_max
+        if too_fast.any():
+            bad = np.argwhere(too_fast)
             raise SetpointError(f"{self.joints[bad[0][1]]} velocity {v[tuple(bad[0])]:.4f} beyond its limit")
-        bad = np.argwhere(np.abs(a) > self.a_max)
-        if len(bad):
+        too_hard = np.abs(a) > self.a_max
+        if too_hard.any():
+            bad = np.argwhere(too_hard)
             raise SetpointError(f"{self.joints[bad[0][1]]} acceleration {a[tuple(bad[0])]:.3f} beyond its limit")
         prev_t, prev_p, prev_v = self._state_before(int(times_ns[0]), now_ns, reference)
         if np.all(np.abs(prev_v) <= REST_VELOCITY):
@@ -109,11 +113,13 @@ class SetpointBuffer:
                 raise SetpointError(f"{self.joints[j]}: a trajectory from rest must start at rest at "
                                     f"{prev_p[j]:.6f}, got {p[0, j]:.6f} moving {v[0, j]:.4f}")
         dt = np.diff(np.concatenate(([prev_t], times_ns))) / 1e9
-        steps = np.abs(np.diff(np.vstack([prev_p, p]), axis=0))
+        steps = np.empty_like(p)  # |p[i] - p[i-1]|, from the point before the chunk
+        steps[0] = np.abs(p[0] - prev_p)
+        np.abs(np.diff(p, axis=0), out=steps[1:])
         reach = self.v_max * dt[:, None] + 1e-9
-        bad = np.argwhere(steps > reach)
-        if len(bad):
-            i, j = bad[0]
+        jumps = steps > reach
+        if jumps.any():
+            i, j = np.argwhere(jumps)[0]
             raise SetpointError(f"{self.joints[j]} jumps {steps[i, j]:.6f} in {dt[i] * 1e3:.3f} ms")
         spacing = times_ns[1] - times_ns[0] if len(times_ns) > 1 else self._spacing()
         if times_ns[0] - prev_t > 1.5 * spacing and np.any(np.abs(prev_v) > REST_VELOCITY):

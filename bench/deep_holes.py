@@ -10,7 +10,9 @@ stretch the tool cuts without once being behind the surface cut before). Ways:
   Z axis follows (its jerk limit, 200 m/s^3, caps it; check_vibration names it);
 - G83: pecks of 1 x D with a full retract to R, same speed and feed per rev, and at
   3000 rpm (what the drill would run without the vibration's speed cap);
-- G73: chip-break retracts, a full one every 3rd, at 3000 rpm.
+- G73: chip-break retracts, a full one every 3rd, at 3000 rpm;
+- LinuxCNC's G83 on the 3000 rpm pecked job, the same limits: read from
+  bench/results/peer.txt (`make bench-peer` runs LinuxCNC, in real time).
 
 Run from the workspace root:  python bench/deep_holes.py  (a few minutes). Writes the table
 to bench/results/deep_holes.txt as well.
@@ -34,7 +36,7 @@ from cnc_planner.report import simulated_feedback  # noqa: E402
 from cnc_planner.vibration import Vibration, _speed_limits  # noqa: E402
 from cnc_servo_bridge.aircut import analyze_aircut  # noqa: E402
 from cnc_servo_bridge.drill_analysis import analyze_drilling  # noqa: E402
-from publish import write_result  # noqa: E402
+from publish import RESULTS, write_result  # noqa: E402
 
 MACHINE = load_machine("mill3")
 DIAMETER_MM, DEPTH_MM, PITCH_MM, R_GAP_MM = 3.0, 15.0, 8.0, 2.0
@@ -90,6 +92,21 @@ def cycle_and_chip(t: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray,
     return result["cycle_time_s"], longest, result["safety_violations"]
 
 
+def linuxcnc_g83() -> list[str]:
+    """LinuxCNC's G83 on the pecked job at the same limits, as `make bench-peer` last
+    measured it (bench/results/peer.txt: LinuxCNC runs in real time, so it is not rerun here)."""
+    peer = RESULTS / "peer.txt"
+    rows = [line.split() for line in (peer.read_text().splitlines() if peer.exists() else [])
+            if line.startswith("  LinuxCNC G83 (drive-model feedback)")]
+    if not rows:
+        return ["LinuxCNC G83: not measured yet (make bench-peer)"]
+    cycle, revs, violations = float(rows[0][-3]), float(rows[0][-2]), int(rows[0][-1])
+    return [f"{f'LinuxCNC G83 3 mm, {PECK_RPM:.0f} rpm (peer.txt)':44s} {'-':>7s} {cycle:8.2f} {revs:10.2f} "
+            f"{revs * FEED_PER_REV_MM:8.2f}",
+            f"  (from bench/results/peer.txt, make bench-peer: LinuxCNC 2.9's G83 recorded, through the same drive"
+            f" model;", f"  no jerk limit; {violations} ms with the tip below R while X/Y was off the hole)"]
+
+
 def main() -> None:
     vib = {"D": 1.5, "Q": 1.2}
     slow = max_vibration_rpm(Vibration(D=1.5, Q=1.2))
@@ -109,6 +126,7 @@ def main() -> None:
         planning, cycle, revs, mm = judge(doc)
         lines.append(f"{name:44s} {planning:7.1f} {cycle:8.2f} {revs:10.2f} {mm:8.2f}")
         print(lines[-1], flush=True)
+    lines += linuxcnc_g83()
     lines.append("chip: the longest stretch cut without an air-cut (analyze_aircut), per hole from the surface")
     text = "\n".join(lines)
     print(text)

@@ -100,9 +100,10 @@ PECKS_AND_DWELL = {  # drill_row.yaml (5 mm deep at 1200 mm/min) pecked, and pec
 @pytest.mark.parametrize("variant", PECKS_AND_DWELL)
 def test_pecked_and_dwelled_holes_reach_depth_on_any_machine(variant):
     """The last peck's turning point and a dwelled stroke's correction come from the drive
-    model: every bottom within 5 um on the shipped mills; on drawn machines (a few, cheap)
-    planned within the bridge's contract and at depth as plain holes are (the turning
-    point is aimed between two exit laws, which a slow drive tells apart by some um)."""
+    model: every bottom within 5 um on the shipped mills; on drawn machines (a few, each
+    planned and run through the drive model) within the plain holes' tolerance: a dwelled
+    stroke's correction is band-limited on a coarse encoder, and a drive without
+    feed-forward stopping a high-jerk stroke then passes the depth by some um."""
     for name in ("mill3", "mill3_stiff", "mill3_soft"):
         verdict = refused_or_verified("drill", load_machine(name), PECKS_AND_DWELL[variant], 0.005)
         assert verdict == "verified", name

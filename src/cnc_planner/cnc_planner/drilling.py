@@ -74,7 +74,7 @@ from cnc_servo_bridge.drive import DriveModel
 
 from .builder import PlanBuilder
 from .motion import Limits, RuckigMove, axis_limits, calculate, point_to_point
-from .peck import Peck, final_reentry, peck_moves
+from .peck import Peck, peck_moves
 from .timeline import Piece, Plan
 from .vibration import (COMPENSATION_TAIL, Vibration, VibrationFeed, compensation_band, learn_correction,
                         settled)
@@ -272,6 +272,7 @@ class _Job:
         self._exits: dict[tuple[float, float], _Retract] = {}
         self._turns: dict[tuple[float, ...], float] = {}
         self._dwells: dict[tuple[float, ...], tuple[np.ndarray, float]] = {}
+        self._approaches: dict[tuple[float, float, float], tuple[float, tuple[RuckigMove, ...]]] = {}
         self._strokes: dict[tuple[float, float], RuckigMove] = {}
         self._vibrated: dict[tuple[float, float], VibrationFeed] = {}
         position = (start["x"], start["y"])
@@ -308,21 +309,29 @@ class _Job:
 
     def final_approach(self, hole: int) -> tuple[float, tuple[RuckigMove, ...]]:
         """Where a hole's last feed stroke starts (feeding) and the Z moves that bring the
-        tool there from rest: none for a plain stroke or a single peck (a steady feed from
-        R), the last retract and re-entry for a pecked hole."""
+        tool there from a steady feed: none for a plain stroke or a single peck (fed from
+        R), the previous peck's feed, the last retract and the re-entry for a pecked hole
+        (a slow drive is still behind the previous peck when the retract starts)."""
         c = self.cycle
         surface, top, bottom = c.planes(hole)
-        last = final_reentry(c.peck, top, surface, bottom) if c.peck is not None else None
-        if last is None:
+        if c.peck is None:
             return top, ()
-        previous, up, entry = last
-        return entry, (_z_move(self.z, previous, 0.0, 0.0, up), _z_move(self.z, up, 0.0, 0.0, entry, -c.feed))
+        if (surface, top, bottom) not in self._approaches:
+            steps = peck_moves(self._peck_move, c.peck, c.feed, top, -c.feed, surface, bottom)
+            lead = tuple(step.move for step in steps[-4:-1]) if len(steps) >= 4 else ()
+            self._approaches[(surface, top, bottom)] = (_state(lead[-1], lead[-1].duration)[0] if lead else top, lead)
+        return self._approaches[(surface, top, bottom)]
+
+    def _peck_move(self, p0: float, v0: float, a0: float, p1: float, v1: float, speed: float | None) -> RuckigMove:
+        """A Z move of a peck sequence (peck.ZMove): at ``speed``, or rapid if None."""
+        lim = self.z if speed is None else Limits(speed, self.z.acceleration, self.z.jerk)
+        return _z_move(lim, p0, v0, a0, p1, v1)
 
     def _reference(self, start: float, lead_in: tuple[RuckigMove, ...], stroke: RuckigMove,
                    after: RuckigMove | None, tail: int, phase: float) -> tuple[np.ndarray, ...]:
         """The Z command around a hole's last stroke on a servo grid shifted by ``phase``
-        periods: BOTTOM_STEADY_S of steady feed into ``start`` (or rest before the lead-in
-        moves), the stroke from time 0, then ``after`` (an exit) or rest, for ``tail``
+        periods: BOTTOM_STEADY_S of steady feed into ``start`` (or into the lead-in moves),
+        the stroke from time 0, then ``after`` (an exit) or rest, for ``tail``
         periods more. Returns p, v, a and the index of the stroke's first sample."""
         period, feed = self.cycle.servo_period, self.cycle.feed
         lead = sum(m.duration for m in lead_in)
@@ -330,8 +339,9 @@ class _Job:
                       math.ceil(stroke.duration / period - phase) + tail)
         tau = (phase + k) * period
         p, v, a = start - feed * tau, np.full(len(tau), -feed), np.zeros(len(tau))
-        if lead_in:
-            p[tau < 0], v[tau < 0] = _state(lead_in[0], 0.0)[0], 0.0
+        if lead_in:  # at the first move's start velocity (a feed, or rest) before it
+            p0, v0, _ = _state(lead_in[0], 0.0)
+            p[tau < 0], v[tau < 0] = p0 + v0 * (tau[tau < 0] + lead), v0
             begin = -lead
             for move in lead_in:
                 inside = (tau >= begin) & (tau < begin + move.duration)
@@ -517,12 +527,7 @@ class _Job:
         dwelled hole's, compensated with its dwell)."""
         c = self.cycle
         surface, top, bottom = c.planes(hole)
-
-        def z_move(p0: float, v0: float, a0: float, p1: float, v1: float, speed: float | None) -> RuckigMove:
-            lim = self.z if speed is None else Limits(speed, self.z.acceleration, self.z.jerk)
-            return _z_move(lim, p0, v0, a0, p1, v1)
-
-        steps = peck_moves(z_move, c.peck, c.feed, top, v0, surface, bottom, self.turning_point(hole))
+        steps = peck_moves(self._peck_move, c.peck, c.feed, top, v0, surface, bottom, self.turning_point(hole))
         for k, step in enumerate(steps):
             if step.kind == "feed" and step.peck > 0:
                 builder.event(t, "peck", hole=hole, peck=step.peck, previous_bottom=step.bottom)

@@ -64,22 +64,6 @@ def levels(surface: float, bottom: float, depth: float) -> list[float]:
     return out + [bottom]
 
 
-def _reentry(peck: Peck, k: int, previous: float, top: float) -> tuple[float, float]:
-    """Retract k (after the peck that ended at ``previous``): where it goes up to, and where
-    the fast re-entry hands over to the feed."""
-    up = top if peck.is_full(k) else min(previous + BREAK_RETRACT, top)
-    return up, min(previous + REENTRY_GAP, up)
-
-
-def final_reentry(peck: Peck, top: float, surface: float, bottom: float) -> tuple[float, float, float] | None:
-    """The last peck's start: (previous bottom, retract level, re-entry level), or None when
-    the hole takes one peck (its only feed starts at R)."""
-    bottoms = levels(surface, bottom, peck.depth)
-    if len(bottoms) < 2:
-        return None
-    return (bottoms[-2], *_reentry(peck, len(bottoms) - 1, bottoms[-2], top))
-
-
 def peck_moves(z_move: ZMove, peck: Peck, feed: float, top: float, v0: float,
                surface: float, bottom: float, turn: float | None = None) -> list[PeckMove]:
     """The Z moves of one hole from R (``top``, moving at ``v0``) to rest at its bottom; the
@@ -91,8 +75,9 @@ def peck_moves(z_move: ZMove, peck: Peck, feed: float, top: float, v0: float,
     bottoms = levels(surface, bottom, peck.depth)
     for k, level in enumerate(bottoms):
         if previous is not None:
-            up, entry = _reentry(peck, k, previous, top)
+            up = top if peck.is_full(k) else min(previous + BREAK_RETRACT, top)
             moves.append(PeckMove("retract", z_move(previous, 0.0, 0.0, up, 0.0, None), k, previous))
+            entry = min(previous + REENTRY_GAP, up)
             moves.append(PeckMove("reentry", z_move(up, 0.0, 0.0, entry, -feed, None), k, previous))
             state = (entry, -feed, 0.0)
         end = turn if turn is not None and k == len(bottoms) - 1 else level

@@ -10,7 +10,9 @@ stretch the tool cuts without once being behind the surface cut before). Ways:
   Z axis follows (its jerk limit, 200 m/s^3, caps it; check_vibration names it);
 - G83: pecks of 1 x D with a full retract to R, same speed and feed per rev, and at
   3000 rpm (what the drill would run without the vibration's speed cap);
-- G73: chip-break retracts, a full one every 3rd, at 3000 rpm.
+- G73: chip-break retracts, a full one every 3rd, at 3000 rpm;
+- LinuxCNC's G83 on the 3000 rpm pecked job, the same limits: read from
+  bench/results/peer.txt (`make bench-peer` runs LinuxCNC, in real time).
 
 Run from the workspace root:  python bench/deep_holes.py  (a few minutes). Writes the table
 to bench/results/deep_holes.txt as well.
@@ -34,10 +36,11 @@ from cnc_planner.report import simulated_feedback  # noqa: E402
 from cnc_planner.vibration import Vibration, _speed_limits  # noqa: E402
 from cnc_servo_bridge.aircut import analyze_aircut  # noqa: E402
 from cnc_servo_bridge.drill_analysis import analyze_drilling  # noqa: E402
-from publish import write_result  # noqa: E402
+from publish import RESULTS, write_result  # noqa: E402
 
 MACHINE = load_machine("mill3")
-DIAMETER_MM, DEPTH_MM, PITCH_MM = 3.0, 15.0, 8.0
+DIAMETER_MM, DEPTH_MM, PITCH_MM, R_GAP_MM = 3.0, 15.0, 8.0, 2.0
+PECK_RPM = 3000.0  # the pecked job LinuxCNC's G83 runs too (bench/peer)
 FEED_PER_REV_MM = 0.1
 START = {"x": -0.008, "y": 0.0, "z": 0.05}
 HOLES = [[PITCH_MM * i, PITCH_MM * j] for j in range(4) for i in range(5)]
@@ -52,7 +55,12 @@ def max_vibration_rpm(vib: Vibration) -> float:
 def job(rpm: float, **drill) -> dict:
     return {"schema": "cnc_job/1", "job_id": "deep-holes", "kind": "drill", "machine": "mill3",
             "tool": {"diameter": DIAMETER_MM}, "spindle_rpm": rpm,
-            "drill": {"holes": HOLES, "depth": DEPTH_MM, "r_gap": 2.0, "feed": FEED_PER_REV_MM * rpm, **drill}}
+            "drill": {"holes": HOLES, "depth": DEPTH_MM, "r_gap": R_GAP_MM, "feed": FEED_PER_REV_MM * rpm, **drill}}
+
+
+def pecked_job() -> dict:
+    """Our G83-like pecking: 1 x D per peck, full retracts to R, at the drill's own speed."""
+    return job(PECK_RPM, peck={"depth": DIAMETER_MM})
 
 
 def judge(doc: dict) -> tuple[float, float, float, float]:
@@ -63,16 +71,40 @@ def judge(doc: dict) -> tuple[float, float, float, float]:
     planning = time.perf_counter() - start
     t, fb = simulated_feedback(plan, MACHINE)
     x, y, z, spindle = (fb[:, plan.joints.index(j)] for j in ("x", "y", "z", SPINDLE))
+    cycle, longest, violations = cycle_and_chip(t, x, y, z, spindle)
+    assert violations == 0
+    return planning, cycle, longest, longest * FEED_PER_REV_MM
+
+
+def cycle_and_chip(t: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray,
+                   spindle: np.ndarray) -> tuple[float, float, int]:
+    """(cycle time s, longest chip in spindle revolutions, safety violations: samples below
+    R with X/Y off the hole) of the job's holes, from sampled
+    feedback (m, rad): whoever planned it (ours, or LinuxCNC's G83 in bench/peer) is judged
+    by the same code."""
     holes = [(h[0] * 1e-3, h[1] * 1e-3) for h in HOLES]
-    r_z = 2e-3
-    result = analyze_drilling(t, x, y, z, holes, r_z, 1e-5, 0.0)
+    result = analyze_drilling(t, x, y, z, holes, R_GAP_MM * 1e-3, 1e-5, 0.0)
     longest = 0.0
     for hole in result["holes"]:
         inside = (t >= hole["r_down_s"]) & (t <= hole["r_up_s"])
         cut = inside & (np.arange(len(t)) >= np.argmax(inside & (z < 0.0)))
         longest = max(longest, analyze_aircut(spindle[cut], -z[cut]).max_chip_revs)
-    assert result["safety_violations"] == 0
-    return planning, result["cycle_time_s"], longest, longest * FEED_PER_REV_MM
+    return result["cycle_time_s"], longest, result["safety_violations"]
+
+
+def linuxcnc_g83() -> list[str]:
+    """LinuxCNC's G83 on the pecked job at the same limits, as `make bench-peer` last
+    measured it (bench/results/peer.txt: LinuxCNC runs in real time, so it is not rerun here)."""
+    peer = RESULTS / "peer.txt"
+    rows = [line.split() for line in (peer.read_text().splitlines() if peer.exists() else [])
+            if line.startswith("  LinuxCNC G83 (drive-model feedback)")]
+    if not rows:
+        return ["LinuxCNC G83: not measured yet (make bench-peer)"]
+    cycle, revs, violations = float(rows[0][-3]), float(rows[0][-2]), int(rows[0][-1])
+    return [f"{f'LinuxCNC G83 3 mm, {PECK_RPM:.0f} rpm (peer.txt)':44s} {'-':>7s} {cycle:8.2f} {revs:10.2f} "
+            f"{revs * FEED_PER_REV_MM:8.2f}",
+            f"  (from bench/results/peer.txt, make bench-peer: LinuxCNC 2.9's G83 recorded, through the same drive"
+            f" model;", f"  no jerk limit; {violations} ms with the tip below R while X/Y was off the hole)"]
 
 
 def main() -> None:
@@ -81,9 +113,9 @@ def main() -> None:
     ways = [
         (f"vibration D1.5 Q1.2, {slow:.0f} rpm", job(slow), vib),
         (f"G83 peck 3 mm (1 x D), {slow:.0f} rpm", job(slow, peck={"depth": DIAMETER_MM}), None),
-        ("G83 peck 3 mm (1 x D), 3000 rpm", job(3000, peck={"depth": DIAMETER_MM}), None),
-        ("G73 break 3 mm, full every 3rd, 3000 rpm",
-         job(3000, peck={"depth": DIAMETER_MM, "retract": "break", "full_every": 3}), None),
+        (f"G83 peck 3 mm (1 x D), {PECK_RPM:.0f} rpm", pecked_job(), None),
+        (f"G73 break 3 mm, full every 3rd, {PECK_RPM:.0f} rpm",
+         job(PECK_RPM, peck={"depth": DIAMETER_MM, "retract": "break", "full_every": 3}), None),
     ]
     lines = [f"Deep holes on mill3: {len(HOLES)} holes of {DIAMETER_MM:g} mm, {DEPTH_MM:g} mm deep "
              f"({DEPTH_MM / DIAMETER_MM:g} x D), {PITCH_MM:g} mm pitch, {FEED_PER_REV_MM:g} mm/rev; on drive-model feedback",
@@ -94,6 +126,7 @@ def main() -> None:
         planning, cycle, revs, mm = judge(doc)
         lines.append(f"{name:44s} {planning:7.1f} {cycle:8.2f} {revs:10.2f} {mm:8.2f}")
         print(lines[-1], flush=True)
+    lines += linuxcnc_g83()
     lines.append("chip: the longest stretch cut without an air-cut (analyze_aircut), per hole from the surface")
     text = "\n".join(lines)
     print(text)

@@ -1,5 +1,6 @@
 """G-code for LinuxCNC 2.9 from the same job documents our planner gets (mm, mm/min, rpm).
 
+- deep holes: G83 with G99 (full retract to R after every peck of Q);
 - drilling: G81 with G99 (retract to R) or G98 (retract to the initial Z, the clearance
   level the program starts at), holes in the job's order;
 - threading: G76 in radius mode (G8, so I/J/K are radii like our x), first depth J and
@@ -25,13 +26,23 @@ def _f(v: float) -> str:
 
 def drill_program(name: str, job: dict, retract: str) -> str:
     """G81 drilling of job['drill'] with G98 or G99."""
+    return _canned_cycle(name, job, f"{retract} G81", "")
+
+
+def peck_program(name: str, job: dict) -> str:
+    """G83 (G99: full retract to R after every peck of Q) of job['drill'] with its peck depth."""
+    return _canned_cycle(name, job, "G99 G83", f" Q{_f(job['drill']['peck']['depth'])}")
+
+
+def _canned_cycle(name: str, job: dict, cycle: str, words: str) -> str:
+    """One canned drilling cycle (``cycle``, extra ``words``) over job['drill']'s holes."""
     d = job["drill"]
     surface = d.get("surface_z", 0.0)
     bottom, r = surface - d["depth"], surface + d.get("r_gap", 2.0)
     holes = d["holes"]
-    lines = [f"({name}: G81 {retract})", "G21 G90 G17 G94 G40 G49 G64",
+    lines = [f"({name}: {cycle}{words})", "G21 G90 G17 G94 G40 G49 G64",
              f"M3 S{_f(job['spindle_rpm'])}",
-             f"{retract} G81 X{_f(holes[0][0])} Y{_f(holes[0][1])} Z{_f(bottom)} R{_f(r)} F{_f(d['feed'])}"]
+             f"{cycle} X{_f(holes[0][0])} Y{_f(holes[0][1])} Z{_f(bottom)} R{_f(r)}{words} F{_f(d['feed'])}"]
     lines += [f"X{_f(x)} Y{_f(y)}" for x, y in holes[1:]]
     lines += ["G80", "M5", "M2", ""]
     return "\n".join(lines)

@@ -7,6 +7,9 @@ same order on both sides); close (5 mm) and wide (40 mm) pitch; shallow (3 mm) a
 pitch before the first hole at the clearance level CLEARANCE_MM above the surface, the
 initial Z that G98 returns to.
 
+Deep holes (mill3): bench/deep_holes.py's pecked job, against LinuxCNC's G83 (same hole
+list, peck depth, R, feed and limits).
+
 Threading (lathe): issue 9's M12x1.75 example, config/jobs/thread_m12.yaml (vibration
 D 1.5, Q 1.2, phase shift 180 deg), from the drive line 1 mm above the major radius at
 start_z; the same thread without vibration (thread_m12_conventional.yaml) as our G76-like
@@ -21,6 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import deep_holes  # bench/: run.py puts it on the path
 import yaml
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -34,7 +38,7 @@ THREAD_CLEARANCE_MM = 1.0  # drive line above the major radius (our RETRACT_CLEA
 @dataclass
 class Row:
     name: str
-    kind: str  # drill | thread | turn
+    kind: str  # drill | deep | thread | turn
     machine: str
     doc: dict
     start: dict[str, float]  # mm, axis -> position
@@ -92,5 +96,12 @@ def turn_row() -> Row:
     return Row("rough cone+steps", "turn", "lathe", doc, {"x": ox, "z": oz})
 
 
+def deep_hole_row() -> Row:
+    """bench/deep_holes.py's pecked job (20 holes, 5 x D, pecks of 1 x D, full retracts),
+    from the same start (its X/Y one pitch before the first hole, Z 50 mm)."""
+    start = {axis: value * 1e3 for axis, value in deep_holes.START.items()}
+    return Row("deep holes 5xD G83", "deep", "mill3", deep_holes.pecked_job(), start)
+
+
 def all_rows() -> list[Row]:
-    return drill_rows() + [thread_row(), turn_row()]
+    return drill_rows() + [deep_hole_row(), thread_row(), turn_row()]

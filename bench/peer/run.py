@@ -16,7 +16,8 @@ recording goes through our drive model; both go through the same analysis code
 
 --keep DIR keeps LinuxCNC's work directories (configs, programs, samples) in DIR;
 --reuse DIR analyses the sessions kept there instead of running LinuxCNC again;
---only REGEX runs the rows whose name matches. Writes bench/results/peer.txt.
+--only REGEX runs the rows whose name matches. Writes bench/results/peer.txt (--only deep
+replaces just its deep-hole section).
 """
 from __future__ import annotations
 
@@ -32,7 +33,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
-sys.path[:0] = [str(HERE)] + [str(ROOT / "src" / p) for p in ("cnc_msgs_py", "cnc_planner", "cnc_servo_bridge")]
+sys.path[:0] = [str(HERE), str(ROOT / "bench")] + [str(ROOT / "src" / p) for p in ("cnc_msgs_py", "cnc_planner", "cnc_servo_bridge")]
 
 import numpy as np  # noqa: E402
 
@@ -43,6 +44,7 @@ from cnc_planner.jobs import drill_cycle  # noqa: E402
 from cnc_planner.kinematics import Kinematics  # noqa: E402
 
 import analysis  # noqa: E402
+import deep_holes  # noqa: E402
 import gcode  # noqa: E402
 import linuxcnc_side  # noqa: E402
 import ours  # noqa: E402
@@ -61,6 +63,8 @@ def programs_for(row: Row) -> list[tuple[str, linuxcnc_side.Program]]:
     if row.kind == "drill":
         return [(v, linuxcnc_side.Program(f"{row.name} {v}", start, gcode.drill_program(row.name, row.doc, v)))
                 for v in ("G99", "G98")]
+    if row.kind == "deep":
+        return [("G83", linuxcnc_side.Program(f"{row.name} G83", start, gcode.peck_program(row.name, row.doc)))]
     if row.kind == "thread":
         text = gcode.thread_program(row.name, row.doc, THREAD_CLEARANCE_MM, back_to_start=True)
         return [("G76", linuxcnc_side.Program(f"{row.name} G76", start, text))]
@@ -91,7 +95,11 @@ def run_linuxcnc(rows: list[Row], workroot: Path, reuse: bool, out: dict, log) -
 
 
 def our_side(row: Row, variants: dict) -> dict:
-    """Our figures for one row on both machine descriptions."""
+    """Our figures for one row on both machine descriptions (a deep-hole row: on the normal
+    one, its plan run through the drive model, as bench/deep_holes.py judges it)."""
+    if row.kind == "deep":
+        _, cycle, chip, _ = deep_holes.judge(row.doc)  # asserts no violations
+        return {"jerk": {"time": cycle, "chip": chip, "viol": 0}}
     res = {}
     for key, machine in variants[row.machine].items():
         o = ours.run_over_topics(row.doc, machine, row.start)
@@ -113,6 +121,11 @@ def judge(row: Row, t, axes, spindle, machine) -> dict:
         off, low = analysis.off_hole(axes, cycle)
         return {"time": a["cycle_time_s"], "viol": a["safety_violations"], "holes": len(cycle.holes),
                 "off_um": off * 1e6, "low_mm": None if low is None else low * 1e3}
+    if row.kind == "deep":
+        if spindle is None:  # LinuxCNC's mill records no spindle: it runs at speed from M3 on
+            spindle = row.doc["spindle_rpm"] * 2 * np.pi / 60.0 * np.asarray(t)
+        cycle, chip, viol = deep_holes.cycle_and_chip(np.asarray(t), axes["x"], axes["y"], axes["z"], spindle)
+        return {"time": cycle, "chip": chip, "viol": viol}
     if row.kind == "thread":
         a = analysis.thread(t, axes, spindle, row.doc["thread"])
         p = a["passes"]
@@ -179,6 +192,8 @@ def table(rows: list[Row], lc: dict, us: dict, bounds: dict) -> list[str]:
             f"{'viol us':>7}  figures / why")
     lines = [head, "-" * (len(head) + 60)]
     for row in rows:
+        if row.kind == "deep":
+            continue  # its own table (deep_section)
         figs = lc.get(row.name, {})
         peer = {"drill": "G99", "thread": "G76", "turn": "G71"}[row.kind]
         main = figs.get(peer, {})
@@ -213,6 +228,52 @@ def table(rows: list[Row], lc: dict, us: dict, bounds: dict) -> list[str]:
             if "error" in f:
                 lines.append(f"{'':<22} {variant:>4} LinuxCNC error: {f['error']}")
     return lines
+
+
+DEEP_HEADER = "Deep holes (bench/deep_holes.py's job):"
+
+
+def deep_section(rows: list[Row], lc: dict, us: dict) -> list[str]:
+    """The deep-hole rows: LinuxCNC G83 against our G83-like pecking, cycle time and chip."""
+    lines = []
+    for row in (r for r in rows if r.kind == "deep"):
+        d = row.doc["drill"]
+        g83 = lc.get(row.name, {}).get("G83", {})
+        mine = us[row.name]["jerk"]
+        revs_per_mm = 1.0 / (d["feed"] / row.doc["spindle_rpm"])
+        lines += [f"{DEEP_HEADER} {len(d['holes'])} holes of {row.doc['tool']['diameter']:g} mm, {d['depth']:g} mm deep, "
+                  f"pecks of {d['peck']['depth']:g} mm ({d['peck']['depth'] * revs_per_mm:.0f} rev of chip at "
+                  f"{d['feed'] / row.doc['spindle_rpm']:g} mm/rev), {row.doc['spindle_rpm']:g} rpm, same limits",
+                  f"  {'way':<44} {'cycle s':>8} {'chip revs':>10} {'viol':>6}"]
+        for name, f in (("LinuxCNC G83 (drive-model feedback)", g83.get("fb", {})),
+                        ("LinuxCNC G83 (ideal loop)", g83.get("raw", {})),
+                        ("ours, G83-like pecks (drive-model feedback)", mine)):
+            lines.append(f"  {name:<44} {fmt(f.get('time'), '8.2f')} {fmt(f.get('chip'), '10.2f')} "
+                         f"{fmt(f.get('viol'), '6d')}")
+        if "error" in g83:
+            lines.append(f"  LinuxCNC error: {g83['error']}")
+    if lines:
+        lines += ["  ours: planned on the normal mill3 (max_jerk 200 m/s^3; LinuxCNC 2.9 plans without a jerk limit),",
+                  "  its commands through the drive model, as bench/deep_holes.py judges it (not over topics).",
+                  "  viol: samples (ms) with the tip below R while X/Y is more than 10 um off the hole.",
+                  "  chip: longest stretch cut without an air-cut (analyze_aircut per hole from the surface, as in",
+                  "  bench/deep_holes.py; LinuxCNC's spindle taken at speed from M3 on); vibration drilling of the",
+                  "  same holes: bench/results/deep_holes.txt."]
+    return lines
+
+
+def splice_deep_section(section: list[str]) -> None:
+    """Replace the deep-hole section of peer.txt (a rerun of that row alone, --only deep)."""
+    old = RESULTS.read_text().splitlines() if RESULTS.exists() else []
+    note = f"  (this section rerun alone on {time.strftime('%Y-%m-%d')}: run.py --only deep; the rest is older)"
+    section = section + [note]
+    start = next((k for k, line in enumerate(old) if line.startswith(DEEP_HEADER)), None)
+    if start is None:  # before the notes, after a blank line
+        start = end = next((k for k, line in enumerate(old) if line.startswith("LC s:")), len(old))
+        section = section + [""]
+    else:
+        end = next((k for k in range(start + 1, len(old)) if not old[k].startswith("  ")), len(old))
+    RESULTS.write_text("\n".join(old[:start] + section + old[end:]) + "\n")
 
 
 def lc_limits(sessions: dict) -> list[str]:
@@ -346,12 +407,15 @@ def main() -> int:
     for row in rows:
         us[row.name] = our_side(row, variants)
         bounds[row.name] = bound(row, variants)
-        log(f"ours: {row.name}: fair {us[row.name]['fair']['time']:.3f} s, jerk {us[row.name]['jerk']['time']:.3f} s")
+        log(f"ours: {row.name}: " + ", ".join(f"{k} {v['time']:.3f} s" for k, v in us[row.name].items()
+                                              if k in ("fair", "jerk")))
     worker.join()
     lc = {row.name: linuxcnc_figures(row, sessions) for row in rows}
     lines = [f"LinuxCNC {version} (linuxcnc-uspace, headless sim, servo 1 ms) vs our planner: same jobs, "
              f"same axis limits, same servo model, same analysis; {time.strftime('%Y-%m-%d')}", ""]
     lines += table(rows, lc, us, bounds)
+    deep = deep_section(rows, lc, us)
+    lines += ["", *deep] if deep else []
     if sessions.get("error"):
         lines.append(f"LinuxCNC failed: {sessions['error']}")
     lines += ["", *notes(rows, lc, us, sessions)]
@@ -361,6 +425,9 @@ def main() -> int:
         RESULTS.parent.mkdir(parents=True, exist_ok=True)
         RESULTS.write_text(text)
         log(f"written {RESULTS.relative_to(ROOT)}")
+    elif deep and all(r.kind == "deep" for r in rows) and not sessions.get("error"):
+        splice_deep_section(deep)
+        log(f"deep-hole section spliced into {RESULTS.relative_to(ROOT)}")
     shutil.rmtree(tmp, ignore_errors=True)  # machines, the topics check; LinuxCNC's unless --keep
     log("done")
     return 0 if "error" not in sessions else 1

@@ -2,9 +2,10 @@
 
 An obstacle is a box [x0, y0, x1, y1, top_z] in axis coordinates (m). The tool, a disk of
 the tool's radius around the tip, passes over it no lower than top_z + OBSTACLE_MARGIN.
-The overlapped cycle moves X/Y only with the tip above its X/Y plane, so that plane is
-raised to the highest obstacle any move between two holes passes over (one plane for the
-whole cycle: the arc between two holes far from any clamp rises too).
+The drill cycle moves X/Y only with the tip above the plane of that move, so each move
+between two holes (and from the start to the first) gets its own plane: the R plane, or
+top + margin of the highest obstacle that move passes over (DrillCycle.air_planes). A move
+that passes over nothing keeps its arc at R.
 """
 from __future__ import annotations
 

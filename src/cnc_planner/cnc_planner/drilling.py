@@ -41,10 +41,19 @@ feedback, not the command, is safe at R then. compensate_xy=False plans the plai
 commands (then both are safe), for comparison.
 
 Below the X/Y plane (feed_to_depth): each hole may have its own surface, R and bottom
-(hole_planes; r_z is then the plane X/Y moves above, the highest R or higher over clamps,
-and Z falls fast from it to the hole's R); the feed to the bottom is plain, vibrated
-(chip breaking locked to the spindle angle, VibrationFeed: Z reaches R at rest) or in
-pecks (peck.py); a dwell (G82) may follow. X/Y stands still over the hole throughout.
+(hole_planes; r_z is then the plane X/Y moves above, the highest R, and Z falls fast from
+it to the hole's R); the feed to the bottom is plain, vibrated (chip breaking locked to
+the spindle angle, VibrationFeed: Z reaches R at rest) or in pecks (peck.py); a dwell
+(G82) may follow. X/Y stands still over the hole throughout. A move between two holes
+that passes over a clamp has its own, higher X/Y plane (air_planes): the retract before
+it, its air arc and the fall into the next hole run to and from that plane, every other
+move stays at r_z.
+
+Bottoms on feedback: the last feed stroke of a hole (plain, or a pecked hole's last peck
+after its retract and re-entry) turns where the drive model's feedback turns at the
+programmed depth (turning_point); a dwelled hole's last stroke ends at the depth itself,
+pre-compensated with the drive model so that its feedback stops there without passing it
+and holds it for the dwell (dwell_correction).
 
 Conventional cycle (overlap=False), like G81 with G99: X/Y rapid, Z rapid to R, feed to
 depth, rapid up to R + RETURN_CLEARANCE, each move after the previous one ends.
@@ -68,7 +77,8 @@ from .motion import Limits, RuckigMove, axis_limits, calculate, point_to_point
 from .peck import Peck, peck_moves
 from .plan_check import BLOCK_S
 from .timeline import Piece, Plan
-from .vibration import COMPENSATION_TAIL, Vibration, VibrationFeed, learn_correction, settled
+from .vibration import (COMPENSATION_TAIL, Vibration, VibrationFeed, compensation_band, learn_correction,
+                        settled)
 
 # Conventional cycle: X/Y travel at R + 1 mm (G99 returns to R; the 1 mm keeps the tip
 # above R on feedback too, where Z reads up to ~0.3 mm below its command while braking).
@@ -86,6 +96,9 @@ XY_SETTLED_COUNTS = 0.25  # encoder counts: an X/Y correction below this has set
 BOTTOM_ROUNDS = 6  # drive-model rounds placing the Z command's turning point at a hole's bottom
 BOTTOM_PHASES = 4  # offsets of a stroke against the servo grid that its turning point is aimed over
 BOTTOM_STEADY_S = 0.3  # s of steady feed before R in those rounds: the drive settles into it
+DWELL_BLEND_S = 0.05  # s: a dwelled hole's stroke correction fades in over this (or half the stroke)
+DWELL_PHASES = 8  # offsets against the servo grid a dwelled stroke's correction is learned at
+DWELL_TOLERANCE = 1e-6  # m (or an encoder count): the feedback is at a dwell's bottom within this
 XY_ACCELERATION_SHARES = (1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3)  # of an S1 move's limits,
 XY_JERK_SHARES = (1.0, 0.3, 0.1, 0.03, 0.01, 3e-3, 1e-3, 3e-4)  # tried fastest first
 XY_HEADROOM_TRIES = 24  # moves tried before the plain (uncompensated) one
@@ -122,6 +135,7 @@ class DrillCycle:
     hole_planes: tuple[tuple[float, float, float], ...] | None = None
     peck: Peck | None = None
     order: tuple[int, ...] | None = None  # the job's index of each hole, in drilling order
+    air_planes: tuple[float, ...] | None = None  # per hole: the plane X/Y moves above into it
 
     def __post_init__(self) -> None:
         if not self.holes:
@@ -143,11 +157,19 @@ class DrillCycle:
                 raise ValueError("hole_planes: one (surface, R, bottom) per hole")
             if not all(self.bottom_z <= b < s <= r <= self.r_z for s, r, b in self.hole_planes):
                 raise ValueError("hole_planes: need bottom_z <= bottom < surface <= R <= r_z per hole")
+        if self.air_planes is not None and (len(self.air_planes) != len(self.holes)
+                                            or min(self.air_planes) < self.r_z):
+            raise ValueError("air_planes: one per hole, none below r_z")
 
     def planes(self, i: int) -> tuple[float, float, float]:
         """Hole i's surface, its R plane (where the feed starts) and its bottom. r_z is the
-        plane X/Y moves above: the highest R, or higher over clamps (clearance_z, obstacles)."""
+        plane X/Y moves above: the highest R, or higher (clearance_z)."""
         return self.hole_planes[i] if self.hole_planes is not None else (self.surface_z, self.r_z, self.bottom_z)
+
+    def air_plane(self, i: int) -> float:
+        """The plane X/Y moves above into hole i (i = 0: from the start; i = len(holes):
+        after the last hole): r_z, or higher where the move passes over clamps (obstacles)."""
+        return self.air_planes[i] if self.air_planes is not None and i < len(self.holes) else self.r_z
 
 
 def _z_move(lim: Limits, p0: float, v0: float, a0: float, p1: float | None = None,
@@ -248,8 +270,10 @@ class _Job:
         if start["z"] < cycle.r_z:
             raise ValueError("the tool must start above the R plane")
         self.n = len(cycle.holes)
-        self._exits: dict[float, _Retract] = {}
-        self._turns: dict[tuple[float, float], float] = {}
+        self._exits: dict[tuple[float, float], _Retract] = {}
+        self._turns: dict[tuple[float, ...], float] = {}
+        self._dwells: dict[tuple[float, ...], tuple[np.ndarray, float]] = {}
+        self._approaches: dict[tuple[float, float, float], tuple[float, tuple[RuckigMove, ...]]] = {}
         self._strokes: dict[tuple[float, float], RuckigMove] = {}
         self._vibrated: dict[tuple[float, float], VibrationFeed] = {}
         position = (start["x"], start["y"])
@@ -274,50 +298,170 @@ class _Job:
             position = hole
 
     def turning_point(self, hole: int) -> float:
-        """Where the Z command turns at a hole's bottom: a plain feed stroke (no pecks,
-        vibration or dwell) turns where the drive's feedback turns at the programmed
-        depth. A drive with velocity lag overshoots the end of a feed stroke (about 16 um
-        on mill3 at 1200 mm/min), one without full feed-forward falls short. The drive
-        model runs the stroke (from a steady feed) and two exits, and the turning
-        point moves by the error, a few rounds (one on mill3; a stiff drive whose bottom
-        feedback rings needs about five, as the stroke's shape changes with its end)."""
+        """Where the Z command turns at a hole's bottom, the exit starting there: a feed
+        stroke (plain, or a pecked hole's last) turns where the drive's feedback turns at
+        the programmed depth. A drive with velocity lag overshoots the end of a feed stroke
+        (about 16 um on mill3 at 1200 mm/min), one without full feed-forward falls short.
+        A dwelled hole's command ends at the bottom itself, pre-compensated so that the
+        feedback stops there (dwell_correction); a vibrated one is compensated as a whole."""
         c = self.cycle
-        _, top, bottom = c.planes(hole)
-        if not c.compensate_xy or c.vibration is not None or c.peck is not None or c.dwell > 0:
+        _, _, bottom = c.planes(hole)
+        if not c.compensate_xy or c.vibration is not None or c.dwell > 0:
             return bottom
-        if (top, bottom) not in self._turns:
+        return self._aimed_turn(*self.final_approach(hole), bottom)
+
+    def final_approach(self, hole: int) -> tuple[float, tuple[RuckigMove, ...]]:
+        """Where a hole's last feed stroke starts (feeding) and the Z moves that bring the
+        tool there from a steady feed: none for a plain stroke or a single peck (fed from
+        R), the previous peck's feed, the last retract and the re-entry for a pecked hole
+        (a slow drive is still behind the previous peck when the retract starts)."""
+        c = self.cycle
+        surface, top, bottom = c.planes(hole)
+        if c.peck is None:
+            return top, ()
+        if (surface, top, bottom) not in self._approaches:
+            steps = peck_moves(self._peck_move, c.peck, c.feed, top, -c.feed, surface, bottom)
+            lead = tuple(step.move for step in steps[-4:-1]) if len(steps) >= 4 else ()
+            self._approaches[(surface, top, bottom)] = (_state(lead[-1], lead[-1].duration)[0] if lead else top, lead)
+        return self._approaches[(surface, top, bottom)]
+
+    def _peck_move(self, p0: float, v0: float, a0: float, p1: float, v1: float, speed: float | None) -> RuckigMove:
+        """A Z move of a peck sequence (peck.ZMove): at ``speed``, or rapid if None."""
+        lim = self.z if speed is None else Limits(speed, self.z.acceleration, self.z.jerk)
+        return _z_move(lim, p0, v0, a0, p1, v1)
+
+    def _reference(self, start: float, lead_in: tuple[RuckigMove, ...], stroke: RuckigMove,
+                   after: RuckigMove | None, tail: int, phase: float) -> tuple[np.ndarray, ...]:
+        """The Z command around a hole's last stroke on a servo grid shifted by ``phase``
+        periods: BOTTOM_STEADY_S of steady feed into ``start`` (or into the lead-in moves),
+        the stroke from time 0, then ``after`` (an exit) or rest, for ``tail``
+        periods more. Returns p, v, a and the index of the stroke's first sample."""
+        period, feed = self.cycle.servo_period, self.cycle.feed
+        lead = sum(m.duration for m in lead_in)
+        k = np.arange(-math.ceil(BOTTOM_STEADY_S / period) - math.ceil(lead / period),
+                      math.ceil(stroke.duration / period - phase) + tail)
+        tau = (phase + k) * period
+        p, v, a = start - feed * tau, np.full(len(tau), -feed), np.zeros(len(tau))
+        if lead_in:  # at the first move's start velocity (a feed, or rest) before it
+            p0, v0, _ = _state(lead_in[0], 0.0)
+            p[tau < 0], v[tau < 0] = p0 + v0 * (tau[tau < 0] + lead), v0
+            begin = -lead
+            for move in lead_in:
+                inside = (tau >= begin) & (tau < begin + move.duration)
+                p[inside], v[inside], a[inside] = _z_samples(move, tau[inside] - begin)
+                begin += move.duration
+        inside = tau >= 0
+        p[inside], v[inside], a[inside] = _z_samples(stroke, tau[inside])
+        beyond = tau >= stroke.duration
+        if after is not None:
+            p[beyond], v[beyond], a[beyond] = _z_samples(after, tau[beyond] - stroke.duration)
+        return p, v, a, int(np.argmax(inside))
+
+    def _aimed_turn(self, start: float, lead_in: tuple[RuckigMove, ...], bottom: float) -> float:
+        """The turning point of a last stroke from ``start``: the drive model runs the
+        approach, the stroke and two exits, and the turning point moves by the error, a few
+        rounds (one on mill3; a stiff drive whose bottom feedback rings needs about five, as
+        the stroke's shape changes with its end)."""
+        c = self.cycle
+        key = (start, bottom, *(_state(m, 0.0)[0] for m in lead_in))
+        if key not in self._turns:
             period = c.servo_period
             drive = DriveModel(self.machine, period, ("z",))
             steady = math.ceil(BOTTOM_STEADY_S / period)
             turn = bottom
             for _ in range(BOTTOM_ROUNDS):
-                stroke = self._stroke(top, turn)
-                before = top + c.feed * period * np.arange(steady, 0, -1)
+                stroke = self._stroke(start, turn)
                 # The exit law is chosen later, per hole, and a stroke starts anywhere
                 # between two servo instants: aim between the extremes of the fastest and
                 # the gentlest exit (rest to rest above R) sampled at BOTTOM_PHASES, so
                 # that every hole lands close.
                 errors = []
                 for exit_move, phase in itertools.product(
-                        (self.fast_exit(turn).move, _z_move(self.z, turn, 0.0, 0.0, c.r_z + RETURN_CLEARANCE)),
+                        (self.fast_exit(turn, c.r_z).move, _z_move(self.z, turn, 0.0, 0.0, c.r_z + RETURN_CLEARANCE)),
                         np.arange(BOTTOM_PHASES) / BOTTOM_PHASES):
-                    t_stroke = (phase + np.arange(math.ceil(stroke.duration / period - phase))) * period
-                    t_exit = t_stroke[-1] + period - stroke.duration + np.arange(
-                        math.ceil(exit_move.duration / period) + steady) * period
-                    pieces = [(before, np.full(steady, -c.feed), np.zeros(steady)),
-                              _z_samples(stroke, t_stroke), _z_samples(exit_move, t_exit)]
-                    p, v, a = (np.concatenate([piece[q] for piece in pieces])[:, None] for q in range(3))
-                    drive.reset(p[0])
+                    p, v, a, k0 = self._reference(start, lead_in, stroke, exit_move,
+                                                  math.ceil(exit_move.duration / period) + steady, phase)
+                    drive.reset(p[:1])
                     drive.state.velocity[:] = v[0]
-                    errors.append(float(np.min(drive.run(p, v, a)[0][steady:, 0]) - bottom))
+                    errors.append(float(np.min(drive.run(p[:, None], v[:, None], a[:, None])[0][k0:, 0]) - bottom))
                 error = 0.5 * (min(errors) + max(errors))
                 if abs(error) < 0.5 * float(drive.resolution[0]):
                     break
                 turn -= error
                 if not self.machine.axes["z"].within_travel(turn):
                     raise ValueError(f"bottom_z: the drive needs a command at {turn} m, outside the Z travel")
-            self._turns[(top, bottom)] = turn
-        return self._turns[(top, bottom)]
+            self._turns[key] = turn
+        return self._turns[key]
+
+    def dwell_correction(self, start: float, lead_in: tuple[RuckigMove, ...], bottom: float,
+                         phase: float) -> tuple[np.ndarray, float]:
+        """The drive-model correction (3, k) of a dwelled hole's last stroke and its dwell,
+        at the servo instants from the stroke's start (the first ``phase`` periods after
+        it; a stiff drive's bottom depends on where they fall), and how long after the
+        stroke's end the feedback arrives (s). The command (stroke plus correction) makes
+        the feedback follow the stroke to rest at the bottom and hold there, where a plain
+        stroke's feedback would overshoot it and come back (velocity lag) or creep in late
+        (no full feed-forward). The correction fades in over the first DWELL_BLEND_S of
+        the stroke (the drive arrives lagging from the moves before it; longer, into the
+        dwell, where the command would break the Z limits otherwise) and out over the
+        dwell's last DWELL_BLEND_S (what is left there chases encoder counts); where the
+        drive cannot catch up by the stroke's end (a slow drive after a fast re-entry), the
+        command rests at the bottom until the feedback is there, and the dwell counts from
+        then: it is held on feedback."""
+        c = self.cycle
+        key = (start, bottom, phase, *(_state(m, 0.0)[0] for m in lead_in))
+        if key not in self._dwells:
+            period = c.servo_period
+            stroke = self._stroke(start, bottom)
+            drive = DriveModel(self.machine, period, ("z",))
+            band = compensation_band(drive, self.machine.axes["z"].max_acceleration)  # a coarse encoder's counts
+            tolerance = max(DWELL_TOLERANCE, float(drive.resolution[0]))
+            late = 0
+            blends = [min(DWELL_BLEND_S, 0.5 * stroke.duration)] + [DWELL_BLEND_S * 2 ** k for k in range(4)]
+            for _ in range(2):  # learn, then learn again with the rest the feedback needs
+                p, v, a, k0 = self._reference(start, lead_in, stroke, None, math.ceil(c.dwell / period) + late, phase)
+                tau = (phase + np.arange(len(p)) - k0) * period
+                fade = min(DWELL_BLEND_S, 0.5 * c.dwell)
+                for blend in blends:  # a drive far behind needs a longer fade-in within the limits
+                    share = np.clip(np.minimum(tau / blend, (tau[-1] - tau) / fade), 0.0, 1.0)
+                    weight = np.sin(0.5 * math.pi * share) ** 2
+                    correction = learn_correction(drive, p[:, None], v[:, None], a[:, None], 0, band, weight)
+                    kept = settled(correction[k0:], len(p) - k0 - 1, period)
+                    command = np.zeros((3, len(p)))
+                    command[:, k0:k0 + kept.shape[1]] = kept[:, :, 0]
+                    if (np.max(np.abs(v + command[1])) <= self.z.velocity
+                            and np.max(np.abs(a + command[2])) <= self.z.acceleration):
+                        break
+                feedback = drive.simulate(*(x[:, None] + dx[:, None] for x, dx in zip((p, v, a), command)))[0][:, 0]
+                end = k0 + math.ceil(stroke.duration / period - phase)  # first instant at rest
+                off = np.nonzero(np.abs(feedback[end:] - bottom) > tolerance)[0]
+                arrival = int(off[-1]) + 1 if len(off) else 0
+                if arrival <= late:
+                    break
+                late = arrival
+            self._dwells[key] = (kept[:, :, 0], late * period)
+        return self._dwells[key]
+
+    def _dwelled_stroke(self, builder: PlanBuilder, t: float, hole: int) -> float:
+        """A dwelled hole's last stroke and its dwell as one compensated Z command
+        (dwell_correction); returns the end of the dwell."""
+        c = self.cycle
+        bottom = c.planes(hole)[2]
+        start, lead_in = self.final_approach(hole)
+        stroke = self._stroke(start, bottom)
+        # the first servo instant after t, in periods, to 1/DWELL_PHASES
+        phase = round((math.ceil(t / c.servo_period - 1e-9) - t / c.servo_period) * DWELL_PHASES) / DWELL_PHASES
+        correction, late = self.dwell_correction(start, lead_in, bottom, phase)
+        grid = (phase + np.arange(correction.shape[1])) * c.servo_period
+
+        def sample(tt: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            return tuple(x + np.interp(tt, grid, dx, right=0.0)  # type: ignore[return-value]
+                         for x, dx in zip(_z_samples(stroke, tt), correction))
+
+        arrival = t + stroke.duration + late
+        builder.timelines["z"].add(Piece(t, arrival + c.dwell - t, sample), bottom)
+        builder.event(arrival, "dwell", hole=hole, seconds=c.dwell)
+        return arrival + c.dwell
 
     def _stroke(self, top: float, turn: float) -> RuckigMove:
         """The plain feed stroke from a hole's R plane, at feed, to the turning point."""
@@ -326,24 +470,25 @@ class _Job:
                                                  top, -self.cycle.feed, 0.0, turn)
         return self._strokes[(top, turn)]
 
-    def fast_exit(self, bottom: float) -> _Retract:
-        """Full acceleration out of a hole from ``bottom``: mode 1 if rapid is reached below R, else 2."""
-        if bottom not in self._exits:
-            c, z = self.cycle, self.z
+    def fast_exit(self, bottom: float, plane: float) -> _Retract:
+        """Full acceleration out of a hole from ``bottom`` up through the X/Y ``plane``:
+        mode 1 if rapid is reached below it, else 2."""
+        if (bottom, plane) not in self._exits:
+            z = self.z
             run = _z_move(z, bottom, 0.0, 0.0, None, z.velocity)
-            if _state(run, run.duration)[0] <= c.r_z:
-                move = _z_move(z, bottom, 0.0, 0.0, c.r_z, z.velocity)
-                self._exits[bottom] = _Retract(1, move, move.duration, (c.r_z, z.velocity, 0.0))
+            if _state(run, run.duration)[0] <= plane:
+                move = _z_move(z, bottom, 0.0, 0.0, plane, z.velocity)
+                self._exits[(bottom, plane)] = _Retract(1, move, move.duration, (plane, z.velocity, 0.0))
             else:
-                t_r = _crossing(run, c.r_z)
-                self._exits[bottom] = _Retract(2, run, t_r, _state(run, t_r))
-        return self._exits[bottom]
+                t_r = _crossing(run, plane)
+                self._exits[(bottom, plane)] = _Retract(2, run, t_r, _state(run, t_r))
+        return self._exits[(bottom, plane)]
 
-    def arc(self, state: tuple[float, float, float], accel: float | None = None,
+    def arc(self, state: tuple[float, float, float], plane: float, accel: float | None = None,
             duration: float = 0.0) -> RuckigMove:
-        """The air move from a state at R (or the start) to R at cutting feed."""
+        """The air move from a state at the X/Y plane (or the start) to ``plane`` at cutting feed."""
         lim = Limits(self.z.velocity, accel or self.z.acceleration, self.z.jerk)
-        return _z_move(lim, *state, self.cycle.r_z, self.entry_velocity, 0.0, duration)
+        return _z_move(lim, *state, plane, self.entry_velocity, 0.0, duration)
 
     @property
     def entry_velocity(self) -> float:
@@ -379,35 +524,42 @@ class _Job:
         builder.event(t_down + move.duration, "vibration_end", hole=hole)
         return t_down + move.duration
 
-    def _pecks(self, builder: PlanBuilder, t: float, hole: int, v0: float) -> float:
-        """The peck sequence of a hole from its R (moving at v0) to rest at its bottom."""
+    def _pecks(self, builder: PlanBuilder, t: float, hole: int, v0: float, last: bool = True) -> float:
+        """The peck sequence of a hole from its R (moving at v0) to rest at its bottom, its
+        last feed turning at the turning point; without that feed if not ``last`` (a
+        dwelled hole's, compensated with its dwell)."""
         c = self.cycle
         surface, top, bottom = c.planes(hole)
-
-        def z_move(p0: float, v0: float, a0: float, p1: float, v1: float, speed: float | None) -> RuckigMove:
-            lim = self.z if speed is None else Limits(speed, self.z.acceleration, self.z.jerk)
-            return _z_move(lim, p0, v0, a0, p1, v1)
-
-        for step in peck_moves(z_move, c.peck, c.feed, top, v0, surface, bottom):
+        steps = peck_moves(self._peck_move, c.peck, c.feed, top, v0, surface, bottom, self.turning_point(hole))
+        for k, step in enumerate(steps):
             if step.kind == "feed" and step.peck > 0:
                 builder.event(t, "peck", hole=hole, peck=step.peck, previous_bottom=step.bottom)
             elif step.kind == "reentry":
                 builder.event(t, "reentry", hole=hole, peck=step.peck, previous_bottom=step.bottom)
-            t = _add_z(builder, t, step.move)
+            if last or k < len(steps) - 1:
+                t = _add_z(builder, t, step.move)
         return t
 
-    def feed_to_depth(self, builder: PlanBuilder, t_down: float, hole: int, overlapped: bool) -> float:
-        """S2 below the X/Y plane: fast down to the hole's own R if it lies lower, the feed
+    def feed_to_depth(self, builder: PlanBuilder, t_down: float, hole: int, overlapped: bool,
+                      plane: float) -> float:
+        """S2 below the X/Y plane (Z at ``plane``): fast down to the hole's own R if it lies lower, the feed
         (plain, vibrated or in pecks) to the bottom, then the dwell (G82); returns when Z
-        leaves the bottom. ``overlapped``: Z arrives at the plane moving (the air arc)."""
+        leaves the bottom. ``overlapped``: Z arrives at the plane moving (the air arc).
+        In the overlapped cycle a dwelled hole's last stroke and dwell are one compensated
+        command (dwell_correction); the conventional cycle holds its plain command."""
         c = self.cycle
         _, top, bottom = c.planes(hole)
         v = self.entry_velocity if overlapped else 0.0
         t = t_down
-        if top < c.r_z - 1e-12:
-            t = _add_z(builder, t, _z_move(self.z, c.r_z, v, 0.0, top, v))
+        if top < plane - 1e-12:
+            t = _add_z(builder, t, _z_move(self.z, plane, v, 0.0, top, v))
+        compensated_dwell = c.dwell > 0 and overlapped and c.compensate_xy and c.vibration is None
         if c.vibration is not None:
             end = self.vibrated_stroke(builder, t, hole)
+        elif compensated_dwell:
+            if c.peck is not None:
+                t = self._pecks(builder, t, hole, v, last=False)
+            return self._dwelled_stroke(builder, t, hole)
         elif c.peck is not None:
             end = self._pecks(builder, t, hole, v)
         elif overlapped:
@@ -419,19 +571,19 @@ class _Job:
             builder.event(end, "dwell", hole=hole, seconds=c.dwell)
         return end + c.dwell
 
-    def _slow_exit(self, speed: float, bottom: float) -> _Retract | None:
-        """Mode 3: reach R at ``speed`` with zero acceleration, or None if that needs an overshoot."""
-        return _slow_exit(self.z, bottom, self.cycle.r_z, float(speed))
+    def _slow_exit(self, speed: float, bottom: float, plane: float) -> _Retract | None:
+        """Mode 3: reach the X/Y plane at ``speed`` with zero acceleration, or None if that needs an overshoot."""
+        return _slow_exit(self.z, bottom, plane, float(speed))
 
     def cost(self, retract: _Retract, air_needed: float) -> float:
         """Time from the bottom to R at feed over the next hole: retract plus air arc."""
-        return retract.t_r + max(_arc_time(self.z, retract.state, self.cycle.r_z, self.cycle.feed), air_needed)
+        return retract.t_r + max(_arc_time(self.z, retract.state, retract.state[0], self.cycle.feed), air_needed)
 
-    def _best_slow_exit(self, air_needed: float, bottom: float) -> _Retract:
-        top = self.fast_exit(bottom).state[1]
+    def _best_slow_exit(self, air_needed: float, bottom: float, plane: float) -> _Retract:
+        top = self.fast_exit(bottom, plane).state[1]
         speeds = np.linspace(0.0, top, MODE3_GRID + 1)[:-1]
         for _ in range(2):
-            found = [r for r in (self._slow_exit(v, bottom) for v in speeds) if r is not None]
+            found = [r for r in (self._slow_exit(v, bottom, plane) for v in speeds) if r is not None]
             costs = [self.cost(r, air_needed) for r in found]
             best = found[int(np.argmin(costs))]
             step = speeds[1] - speeds[0]
@@ -442,14 +594,15 @@ class _Job:
         """The retract law for a hole followed by an air arc of at least ``air_needed``."""
         forced = self.cycle.mode
         bottom = self.turning_point(hole)
-        fast = self.fast_exit(bottom)
+        plane = self.cycle.air_plane(hole + 1)
+        fast = self.fast_exit(bottom, plane)
         if forced in (1, 2):
             if fast.mode != forced:
                 reason = ("too shallow to reach rapid below R" if forced == 1
                           else "deep enough to reach rapid below R (mode 1)")
                 raise ValueError(f"mode: {forced} is impossible here, the hole is {reason}")
             return fast
-        slow = self._best_slow_exit(air_needed, bottom)
+        slow = self._best_slow_exit(air_needed, bottom, plane)
         if forced == 3 or self.cost(slow, air_needed) < self.cost(fast, air_needed) - 1e-6:
             return slow
         return fast
@@ -695,8 +848,8 @@ def _emit_overlapped(job: _Job, retracts: list[_Retract]) -> Emit:
     """Overlapped cycle: e_down[i] = Z at R after the X/Y command ends, e_up[i] = X/Y start
     after Z passed R up from hole i-1; accel[i] = Z acceleration limit of hole i's air move."""
     c = job.cycle
-    approach_min = _z_move(job.z, job.start["z"], 0.0, 0.0, c.r_z, job.entry_velocity)
-    arc_min = [approach_min.duration] + [job.arc(r.state).duration for r in retracts[:-1]]
+    approach_min = _z_move(job.z, job.start["z"], 0.0, 0.0, c.air_plane(0), job.entry_velocity)
+    arc_min = [approach_min.duration] + [job.arc(r.state, r.state[0]).duration for r in retracts[:-1]]
     last_mode, last_move, last_t_r, stop = job.last_retract()
 
     def emit(builder: PlanBuilder, t0: float, e_down: np.ndarray, e_up: np.ndarray,
@@ -726,15 +879,16 @@ def _emit_overlapped(job: _Job, retracts: list[_Retract]) -> Emit:
                 gentle = accel[0] < job.z.acceleration
                 t_air = t0 if gentle else t0 + air_time - arc_min[0]
                 air = (_z_move(Limits(job.z.velocity, accel[0], job.z.jerk), job.start["z"], 0.0, 0.0,
-                               c.r_z, job.entry_velocity, 0.0, t0 + air_time - t_air) if gentle else approach_min)
+                               c.air_plane(0), job.entry_velocity, 0.0, t0 + air_time - t_air) if gentle
+                       else approach_min)
             else:
                 t_air = u
-                air = job.arc(retracts[i - 1].state, accel[i], air_time)
+                air = job.arc(retracts[i - 1].state, c.air_plane(i), accel[i], air_time)
             t_down = _add_z(builder, t_air, air)
             apex = air.trajectory.position_extrema[0]
             builder.event(t_air + apex.t_max, "S2", hole=i, mode=mode)
             builder.event(t_down, "R_down", hole=i, mode=mode)
-            t_s3 = job.feed_to_depth(builder, t_down, i, overlapped=True)
+            t_s3 = job.feed_to_depth(builder, t_down, i, True, c.air_plane(i))
             builder.event(t_s3, "S3", hole=i, mode=mode)
             if last:
                 u = t_s3 + last_t_r
@@ -763,7 +917,6 @@ def _emit_conventional(job: _Job) -> Emit:
     """Sequential G81/G99 cycle: e_up[i] = dwell before the X/Y move, e_down[i] = dwell
     between the X/Y move's end and the rapid down to R."""
     c = job.cycle
-    clearance = c.r_z + RETURN_CLEARANCE
 
     def emit(builder: PlanBuilder, t0: float, e_down: np.ndarray, e_up: np.ndarray,
              accel: np.ndarray, energy: bool) -> list[dict]:
@@ -776,8 +929,9 @@ def _emit_conventional(job: _Job) -> Emit:
             t_down = builder.rapid({"z": c.r_z}, start=t_s2)
             builder.event(t_s2, "S2", hole=i, mode=None)
             builder.event(t_down, "R_down", hole=i, mode=None)
-            t_s3 = job.feed_to_depth(builder, t_down, i, overlapped=False)
+            t_s3 = job.feed_to_depth(builder, t_down, i, False, c.r_z)
             builder.event(t_s3, "S3", hole=i, mode=None)
+            clearance = c.air_plane(i + 1) + RETURN_CLEARANCE  # X/Y moves on at this level
             up = builder.rapid_move({"z": clearance})
             t_up = t_s3 + _crossing(up, c.r_z)
             builder.rapid({"z": clearance}, start=t_s3)
@@ -807,28 +961,34 @@ def _feedback(machine: Machine, plan: Plan, ts: np.ndarray, period: float) -> np
 
 def _lag_margins(job: _Job, plan: Plan, infos: list[dict], t0: float) -> tuple[np.ndarray, np.ndarray]:
     """Per hole, in servo periods, from the drive model's feedback: how late X/Y settles
-    after the tip went below R (down) and how early X/Y leaves before the tip is back
-    above R (up). Positive = unsafe by that many samples, negative = slack."""
+    after the tip went below the plane of the move into the hole (down) and how early X/Y
+    leaves before the tip is back above the plane of the move out of it (up). Positive =
+    unsafe by that many samples, negative = slack."""
     c = job.cycle
     period = c.servo_period
     k0 = math.floor(t0 / period + 1e-9)
     ts = (k0 + np.arange(math.ceil((plan.duration - t0) / period) + 50)) * period
     feedback = _feedback(job.machine, plan, ts, period)
-    below = feedback[:, 2] < c.r_z
+    z = feedback[:, 2]
     starts = np.searchsorted(ts, [info["s1"] for info in infos] + [ts[-1] + 1.0, ts[-1] + 1.0])
     down = np.zeros(job.n)
     up = np.zeros(job.n)
     ku = 0
     for i, info in enumerate(infos):
         # S1 may start a few periods before the previous hole's tip is out: skip that.
+        # X/Y moves into the hole above one plane and out of it above the next's.
         lo, hi = max(starts[i], ku), starts[i + 2]
-        if not below[lo:hi].any():
+        into, out = c.air_plane(i), c.air_plane(i + 1)
+        low = z[lo:hi] < min(into, out)  # one visit below both planes (pecks stay below R)
+        if not low.any():
             continue
-        kd = lo + int(np.argmax(below[lo:hi]))
-        ku = kd + int(np.argmin(below[kd:hi]))
-        ku = hi if below[ku] else ku
+        kv = lo + int(np.argmax(low))
+        kw = hi if low[kv - lo:].all() else kv + int(np.argmin(low[kv - lo:]))
+        kb = kv + int(np.argmin(z[kv:kw]))  # the hole's bottom
+        kd = lo + int(np.argmax(z[lo:hi] < into))
+        ku = kb + int(np.argmin(z[kb:hi] < out))
+        ku = hi if z[ku] < out else ku
         # Off-hole samples before the hole's bottom are a late arrival, after it an early exit.
-        kb = kd + int(np.argmin(feedback[kd:ku, 2]))
         far = np.hypot(feedback[lo:hi, 0] - info["x"], feedback[lo:hi, 1] - info["y"]) > c.xy_tolerance
         before = np.nonzero(far[: kb - lo])[0]
         after = np.nonzero(far[kb - lo:])[0]
@@ -884,12 +1044,13 @@ def _gentle_accels(job: _Job, emit: Emit, t0: float, e_down: np.ndarray, e_up: n
     (the full limit is the plain cycle, known safe).
     """
     full = job.z.acceleration
+    c = job.cycle
     low = np.empty(job.n)
     for i, (state, air_time) in enumerate(zip(starts, air_times)):
         lo, hi = max(abs(state[2]), 0.02 * full), full
         for _ in range(20):
             mid = 0.5 * (lo + hi)
-            lo, hi = (lo, mid) if job.arc(state, mid).duration <= air_time + 1e-9 else (mid, hi)
+            lo, hi = (lo, mid) if job.arc(state, c.air_plane(i), mid).duration <= air_time + 1e-9 else (mid, hi)
         low[i] = hi
     safe = np.full(job.n, full)
     test = low
@@ -901,8 +1062,9 @@ def _gentle_accels(job: _Job, emit: Emit, t0: float, e_down: np.ndarray, e_up: n
     # Keep a lower limit only where it really lowers the energy: ruckig stretches a
     # move to a given duration differently under different limits.
     for i, (state, air_time) in enumerate(zip(starts, air_times)):
-        plain = job.arc(state) if i == 0 else job.arc(state, full, air_time)
-        if safe[i] < full and _air_energy(job.arc(state, safe[i], air_time)) >= _air_energy(plain):
+        plane = c.air_plane(i)
+        plain = job.arc(state, plane) if i == 0 else job.arc(state, plane, full, air_time)
+        if safe[i] < full and _air_energy(job.arc(state, plane, safe[i], air_time)) >= _air_energy(plain):
             safe[i] = full
     return safe
 
@@ -940,11 +1102,11 @@ def plan_drilling(builder: PlanBuilder, cycle: DrillCycle) -> list[dict]:
         laws: dict[tuple[float, float], _Retract] = {}  # holes of one pitch and depth need the same law
         out = []
         for i in range(job.n - 1):
-            key = (float(air_needed[i + 1]), job.turning_point(i))
+            key = (float(air_needed[i + 1]), job.turning_point(i), cycle.air_plane(i + 1))
             if key not in laws:
                 laws[key] = job.retract(key[0], i)
             out.append(laws[key])
-        return out + [job.fast_exit(last_bottom)]
+        return out + [job.fast_exit(last_bottom, cycle.r_z)]
 
     # One round at the command floors measures the lag margins; with them the retract
     # laws are chosen once more, then the gaps settle.
@@ -972,6 +1134,6 @@ def lower_bound_time(machine: Machine, cycle: DrillCycle,
     first = start_xy if start_xy is not None else cycle.holes[0]
     job = _Job(machine, replace(cycle, compensate_xy=False), {"x": first[0], "y": first[1], "z": cycle.r_z})
     # each hole from its own R (a fall from the X/Y plane to a lower one left out) to its bottom
-    below = sum(job._stroke(top, bottom).duration + job.fast_exit(bottom).t_r
+    below = sum(job._stroke(top, bottom).duration + job.fast_exit(bottom, cycle.r_z).t_r
                 for _, top, bottom in map(cycle.planes, range(job.n)))
     return sum(xy.duration for xy in job.xy) + below

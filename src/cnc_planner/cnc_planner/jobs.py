@@ -199,8 +199,8 @@ def drill_cycle(job: SimpleNamespace, machine: Machine, kin: Kinematics,
 
     Holes are in drilling order (``order: shortest`` tours them from ``start_xy``, the
     first hole if not given); ``cycle.order`` maps them back to the job's hole indices.
-    r_z is the plane X/Y moves above: the highest R, raised to clearance_z and over the
-    obstacles the path between the holes passes over."""
+    r_z is the plane X/Y moves above: the highest R, raised to clearance_z; a move between
+    two holes rises higher only over the obstacles it passes over (air_planes)."""
     d = job.drill
     if tilted(kin):
         if machine.layout == "mill3":
@@ -224,16 +224,19 @@ def drill_cycle(job: SimpleNamespace, machine: Machine, kin: Kinematics,
     r_z = _xy_plane(d, planes)
     if d.clearance_z is not None:
         r_z = max(r_z, z_of(d.clearance_z))
-    r_z = max([r_z] + [z_of(top) for top in obstacle_tops(job, [d.holes[k] for k in order])])
+    path = [d.holes[k] for k in order]
+    obstacle_tops(job, path)  # a hole under an obstacle is refused
+    air = [r_z] + [max([r_z] + [z_of(top) for top in obstacle_tops(job, pair)]) for pair in zip(path, path[1:])]
     check_travel(machine, {"z": r_z + RETURN_CLEARANCE}, "drill.r_gap" if d.clearance_z is None else "drill.clearance_z")
+    check_travel(machine, {"z": max(air) + RETURN_CLEARANCE}, "drill.obstacles")
     uniform = len(set(planes)) == 1 and planes[0][1] == r_z
     return DrillCycle(holes=[holes[k] for k in order], surface_z=max(p[0] for p in planes),
                       bottom_z=min(p[2] for p in planes), r_z=r_z,
                       feed=d.feed, overlap=d.overlap != "off", mode=None if d.mode == "auto" else d.mode,
                       gentle_air_accel=d.gentle_air_accel, dwell=d.dwell,
                       hole_planes=None if uniform else tuple(planes[k] for k in order),
-                      peck=_peck(d),
-                      order=tuple(order), **drill_vibration(job, machine))
+                      peck=_peck(d), order=tuple(order), air_planes=tuple(air) if max(air) > r_z else None,
+                      **drill_vibration(job, machine))
 
 
 def _peck(d: SimpleNamespace) -> Peck | None:
@@ -462,11 +465,16 @@ def plan_drill(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin
         return plan_drill_tilted(job, machine, builder, kin)
     cycle = drill_cycle(job, machine, kin, (builder.position("x"), builder.position("y")))
     builder.spindle(job.spindle_rpm)
-    # Over the obstacles between the start and the first hole too (the cycle keeps its plane after).
+    # Over the obstacles between the start and the first hole too: the first move's plane.
     tip = kin.to_program({j: builder.position(j) for j in machine.linear_axes})
     first = job.drill.holes[cycle.order[0]]
-    lift = max([cycle.r_z + RETURN_CLEARANCE] + [to_axes(kin, {"z": top}, "drill.obstacles")["z"] + RETURN_CLEARANCE
-                                                 for top in obstacle_tops(job, [[tip["x"], tip["y"]], first])])
+    plane = max([cycle.r_z] + [to_axes(kin, {"z": top}, "drill.obstacles")["z"]
+                               for top in obstacle_tops(job, [[tip["x"], tip["y"]], first])])
+    if plane > cycle.r_z:
+        air = cycle.air_planes or (cycle.r_z,) * len(cycle.holes)
+        cycle = replace(cycle, air_planes=(plane,) + tuple(air[1:]))
+    check_travel(machine, {"z": plane + RETURN_CLEARANCE}, "drill.obstacles")
+    lift = plane + RETURN_CLEARANCE
     if builder.position("z") < lift:
         builder.rapid({"z": lift})
     builder.timelines["z"].add_hold(builder.end_time(), max(0.0, builder.spindle_ready - builder.end_time()))

@@ -65,18 +65,22 @@ def levels(surface: float, bottom: float, depth: float) -> list[float]:
 
 
 def peck_moves(z_move: ZMove, peck: Peck, feed: float, top: float, v0: float,
-               surface: float, bottom: float) -> list[PeckMove]:
-    """The Z moves of one hole from R (``top``, moving at ``v0``) to rest at its bottom."""
+               surface: float, bottom: float, turn: float | None = None) -> list[PeckMove]:
+    """The Z moves of one hole from R (``top``, moving at ``v0``) to rest at its bottom; the
+    last feed's command turns at ``turn`` (where the drive's feedback turns at the bottom,
+    drilling._Job.turning_point), at the bottom if not given."""
     moves: list[PeckMove] = []
     state = (top, v0, 0.0)
     previous = None
-    for k, level in enumerate(levels(surface, bottom, peck.depth)):
+    bottoms = levels(surface, bottom, peck.depth)
+    for k, level in enumerate(bottoms):
         if previous is not None:
             up = top if peck.is_full(k) else min(previous + BREAK_RETRACT, top)
             moves.append(PeckMove("retract", z_move(previous, 0.0, 0.0, up, 0.0, None), k, previous))
             entry = min(previous + REENTRY_GAP, up)
             moves.append(PeckMove("reentry", z_move(up, 0.0, 0.0, entry, -feed, None), k, previous))
             state = (entry, -feed, 0.0)
-        moves.append(PeckMove("feed", z_move(*state, level, 0.0, feed), k, level))
+        end = turn if turn is not None and k == len(bottoms) - 1 else level
+        moves.append(PeckMove("feed", z_move(*state, end, 0.0, feed), k, level))
         previous = level
     return moves

@@ -489,7 +489,7 @@ def compensation_band(drive: DriveModel, max_acceleration: float) -> tuple[float
 
 def learn_correction(
     drive: DriveModel, p: np.ndarray, v: np.ndarray, a: np.ndarray, fixed: int,
-    band: tuple[float, float] = INVERSE_BAND,
+    band: tuple[float, float] = INVERSE_BAND, weight: np.ndarray | None = None,
 ) -> np.ndarray:
     """Command correction (n, joints) that makes the drive's simulated feedback follow the
     reference p (with its derivatives v, a), sampled every servo period, at rest at both ends.
@@ -498,7 +498,9 @@ def learn_correction(
     the drive's linear part as learning operator (see VibrationFeed); the first `fixed`
     samples stay uncorrected, so the command starts at rest where the reference does;
     `band` (shares of the servo rate) is where the inverse fades out: nothing above it is
-    corrected, encoder quantisation included. Returns the best correction seen.
+    corrected, encoder quantisation included. ``weight`` (n,), from 0 to 1, fades the
+    correction in where the command must join a piece before it (a drill's final stroke
+    starts at feed, where the drive already lags). Returns the best correction seen.
     """
     n = p.shape[0]
     # zero padding: no wrap-around
@@ -509,11 +511,14 @@ def learn_correction(
         dv, da = _derivatives(correction, drive.period)
         feedback = drive.simulate(p + correction, v + dv, a + da)[0]
         error = p - feedback
-        if np.max(np.abs(error)) < best_error:
-            best, best_error = correction, np.max(np.abs(error))
+        judged = error if weight is None else error[weight >= weight.max()]  # where it acts in full
+        if np.max(np.abs(judged)) < best_error:
+            best, best_error = correction, np.max(np.abs(judged))
         step = np.fft.irfft(np.fft.rfft(error, 2 * n, axis=0) * inverse, 2 * n, axis=0)[:n]
         correction = correction + step
         correction[:fixed] = 0.0  # starts at rest; leads by the rest left before the motion
+        if weight is not None:
+            correction *= weight[:, None]
     return best
 
 

@@ -48,12 +48,13 @@ bench-peer: setup
 	$(PY) bench/peer/run.py
 
 # A 10,000-hole plate and a 1-hour raster streamed over topics and checked from their
-# recordings: not part of `make bench`; about 20 minutes on 2 CPUs (more under load).
+# recordings: not part of `make bench`; about 7 minutes on 2 idle CPUs (more under load).
 soak: setup
 	$(PY) bench/soak.py
 
 # The real-time tests 50 times in a row beside two busy processes and the rest of the
-# suite: not part of `make test`; one run takes 20-35 s on 2 CPUs, so about 20-30 minutes.
+# suite (restarted whenever it ends): not part of `make test`; one run takes 20-35 s on 2 CPUs,
+# so about 20-30 minutes.
 stress: setup
 	$(PY) bench/stress_real_time.py --runs 50
 

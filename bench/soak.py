@@ -10,15 +10,17 @@ time, every topic recorded to MCAP), then the recording is checked:
   (drill_analysis: the tip below R only with X/Y on the hole);
 - peak RSS (VmHWM) of the planner and bridge processes, and their RSS at 10 %, 50 % and
   100 % of the job, to show it does not grow with the job.
-Run from the workspace root:  python bench/soak.py   (about 20 minutes on 2 CPUs;
-`--quick` runs both jobs cut to a tenth, `--only plate|raster` one of them). Writes
-bench/results/soak.txt (soak_<options>.txt for the variants).
+Run from the workspace root:  python bench/soak.py   (about 7 minutes on 2 idle CPUs;
+`--quick` runs both jobs cut to a tenth, `--only plate|raster` one of them, `--real-time`
+a 10-minute raster with the bridge on the wall clock at 1x, where nothing holds the clock
+back for the recorder). Writes bench/results/soak.txt (soak_<options>.txt for the variants).
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import subprocess
 import sys
 import tempfile
 import time
@@ -32,10 +34,11 @@ sys.path[:0] = [str(ROOT / "src" / p) for p in ("cnc_msgs_py", "cnc_planner", "c
 from cnc_msgs_py.job import load_job_file, parse_job  # noqa: E402
 from cnc_msgs_py.machine import load_machine  # noqa: E402
 from load import vm_hwm_kib  # noqa: E402
-from publish import write_result  # noqa: E402
+from publish import RESULTS, write_result  # noqa: E402
 
 JOBS = ROOT / "config" / "jobs"
 PERIOD_NS = 1_000_000
+REAL_TIME_LINES = 148  # the raster's strokes for about 10 minutes of machine time
 
 
 def plate_doc(side: int) -> dict:
@@ -58,7 +61,7 @@ def raster_doc(lines: int) -> dict:
             "spindle_rpm": 8000, "move": moves}
 
 
-def run(doc: dict, out: Path) -> dict:
+def run(doc: dict, out: Path, simulation: bool = True) -> dict:
     """The job through both nodes, recorded; node memory polled along the way."""
     from cnc_planner.runner import Session, local_dds_env
 
@@ -79,7 +82,7 @@ def run(doc: dict, out: Path) -> dict:
             print(f"  {doc['job_id']}: {progress * 100:.0f} %  ({status.get('detail')})", flush=True)
 
     env = local_dds_env(int(os.environ.get("ROS_DOMAIN_ID") or 0) or 43)
-    with Session(doc["machine"], out, env=env, progress=poll) as session:
+    with Session(doc["machine"], out, simulation=simulation, env=env, progress=poll) as session:
         procs.update(session.procs)
         sim0, wall0 = session.recorder.sim_ns, time.monotonic()
         session.submit(json.dumps(doc))
@@ -153,30 +156,40 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="both jobs cut to a tenth (a smoke run)")
     parser.add_argument("--only", choices=("plate", "raster"), help="run one of the two jobs")
+    parser.add_argument("--real-time", action="store_true", help="a 10-minute raster at 1x on the wall clock")
     args = parser.parse_args()
     jobs = [plate_doc(32 if args.quick else 100), raster_doc(88 if args.quick else 880)]
     jobs = [doc for doc in jobs if args.only is None or doc["job_id"].startswith(args.only)]
+    if args.real_time:
+        jobs = [raster_doc(REAL_TIME_LINES)]
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for doc in jobs:
             bag = Path(tmp) / doc["job_id"]
             print(f"running {doc['job_id']}", flush=True)
-            result = run(doc, bag)
+            result = run(doc, bag, simulation=not args.real_time)
             print(f"  checking the recording of {doc['job_id']}", flush=True)
             result["check"] = check_recording(bag)
             if doc["kind"] == "drill":
                 result["safety"] = drill_safety(bag, doc)
             rows.append((doc, result))
-    text = table(rows, args.quick)
+    text = table(rows, "real time, 1x on the wall clock" if args.real_time else "quick: a tenth of each job"
+                 if args.quick else "full, simulation")
+    before = RESULTS / "soak_before_issue18.txt"
+    if not (args.quick or args.only or args.real_time):  # the figures before the speed work (issue 18)
+        text += "\n\n" + "=" * 108 + f"\nBefore issue 18 (kept from {before.name}):\n\n" + before.read_text().rstrip()
     print(text)
-    name = "soak" + ("_quick" if args.quick else "") + (f"_{args.only}" if args.only else "")
+    name = ("soak" + ("_quick" if args.quick else "") + (f"_{args.only}" if args.only else "")
+            + ("_real_time" if args.real_time else ""))
     write_result(f"{name}.txt", text)
     return 0
 
 
-def table(rows: list[tuple[dict, dict]], quick: bool) -> str:
+def table(rows: list[tuple[dict, dict]], mode: str) -> str:
     mib = lambda kib: kib / 1024  # noqa: E731
-    lines = [f"Soak ({'quick: a tenth of each job' if quick else 'full'}; {os.cpu_count()} CPUs)", "",
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True)
+    lines = [f"Soak ({mode}; {os.cpu_count()} CPUs, load average {os.getloadavg()[1]:.1f} at the end; "
+             f"commit {commit.stdout.strip() or 'unknown'})", "",
              f"{'job':<14}{'state':>10}{'machine s':>10}{'wall s':>8}{'x real':>7}{'chunks':>8}{'gaps':>5}"
              f"{'overl.':>7}{'statuses':>9}{'mono':>5}{'samples':>10}{'missing':>8}{'gap ms':>7}", "-" * 108]
     for doc, r in rows:

@@ -23,6 +23,39 @@ REAL_TIME_TESTS = ["test/test_real_time.py", "test/test_node_survival.py"]
 BUSY = "import time\nend = time.monotonic() + {limit}\nwhile time.monotonic() < end:\n    pass\n"
 
 
+class RestOfSuite:
+    """The rest of the test suite, run again each time it ends, so that every real-time run
+    has it alongside; each finished round's summary and failed tests are kept."""
+
+    def __init__(self, command: list[str], env: dict[str, str]) -> None:
+        self.command, self.env = command, env
+        self.outcomes: list[str] = []
+        self.proc: subprocess.Popen | None = None
+        self.log = tempfile.TemporaryFile("w+")
+
+    def keep_running(self) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            return
+        if self.proc is not None:
+            self.outcomes.append(self._outcome())
+        self.log.seek(0)
+        self.log.truncate()
+        self.proc = subprocess.Popen(self.command, cwd=ROOT, env=self.env, stdout=self.log, stderr=subprocess.STDOUT)
+
+    def stop(self) -> None:
+        """Kill an unfinished round (not counted)."""
+        if self.proc is not None and self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+        elif self.proc is not None:
+            self.outcomes.append(self._outcome())
+
+    def _outcome(self) -> str:
+        self.log.seek(0)
+        output = self.log.read().strip().splitlines() or ["(no output)"]
+        return "; ".join([output[-1]] + [line for line in output if line.startswith("FAILED ")])
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=50)
@@ -33,31 +66,29 @@ def main() -> int:
     rest_env, real_time_env = dict(env, CNC_TEST_DOMAINS="1-100"), dict(env, CNC_TEST_DOMAINS="211-230")
     pytest = [sys.executable, "-m", "pytest", "-q", "-p", "no:warnings", "-p", "no:cacheprovider"]
     busy = [subprocess.Popen([sys.executable, "-c", BUSY.format(limit=args.limit)]) for _ in range(2)]
-    rest_log = tempfile.TemporaryFile("w+")
-    rest = subprocess.Popen(pytest + [f"--ignore={t}" for t in REAL_TIME_TESTS], cwd=ROOT, env=rest_env,
-                            stdout=rest_log, stderr=subprocess.STDOUT)
+    rest = RestOfSuite(pytest + [f"--ignore={t}" for t in REAL_TIME_TESTS], rest_env)
     lines, failed = [], 0
     try:
         for run in range(1, args.runs + 1):
+            rest.keep_running()
             start = time.monotonic()
             result = subprocess.run(pytest + REAL_TIME_TESTS, cwd=ROOT, env=real_time_env, capture_output=True, text=True)
             tail = (result.stdout.strip().splitlines() or ["(no output)"])[-1]
             failed += result.returncode != 0
-            suite = "running" if rest.poll() is None else "done"
-            line = f"run {run:3d}: exit {result.returncode}  {time.monotonic() - start:6.1f} s  rest of suite {suite}  {tail}"
+            line = (f"run {run:3d}: exit {result.returncode}  {time.monotonic() - start:6.1f} s  "
+                    f"rest of suite round {len(rest.outcomes) + 1} alongside  {tail}")
             print(line, flush=True)
             lines.append(line)
             if result.returncode != 0:
                 lines.append(result.stdout[-3000:])
     finally:
-        for proc in busy + [rest]:
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait()
-    rest_log.seek(0)
-    rest_tail = (rest_log.read().strip().splitlines() or ["(no output)"])[-1]
+        for proc in busy:
+            proc.kill()
+            proc.wait()
+        rest.stop()
+    lines += [f"rest of suite, round {k}: {outcome}" for k, outcome in enumerate(rest.outcomes, 1)]
     summary = (f"{args.runs - failed} of {args.runs} runs passed (2 busy processes; the rest of the suite "
-               f"alongside: {rest_tail})")
+               f"alongside every run, restarted whenever it ended: {len(rest.outcomes)} rounds ended)")
     print(summary)
     write_result("stress_real_time.txt", "\n".join(lines + [summary]))
     return 1 if failed else 0

@@ -53,7 +53,8 @@ Bottoms on feedback: the last feed stroke of a hole (plain, or a pecked hole's l
 after its retract and re-entry) turns where the drive model's feedback turns at the
 programmed depth (turning_point); a dwelled hole's last stroke ends at the depth itself,
 pre-compensated with the drive model so that its feedback stops there without passing it
-and holds it for the dwell (dwell_correction).
+and holds it for the dwell (dwell_correction: learned, or where that cannot land, aimed
+and then settled onto the depth).
 
 Conventional cycle (overlap=False), like G81 with G99: X/Y rapid, Z rapid to R, feed to
 depth, rapid up to R + RETURN_CLEARANCE, each move after the previous one ends.
@@ -99,6 +100,9 @@ BOTTOM_STEADY_S = 0.3  # s of steady feed before R in those rounds: the drive se
 DWELL_BLEND_S = 0.05  # s: a dwelled hole's stroke correction fades in over this (or half the stroke)
 DWELL_PHASES = 8  # offsets against the servo grid a dwelled stroke's correction is learned at
 DWELL_TOLERANCE = 1e-6  # m (or an encoder count): the feedback is at a dwell's bottom within this
+DWELL_KEPT = 2e-6  # m (or an encoder count): a learned dwell correction landing this close is kept
+DWELL_SETTLE_TIME_CONSTANTS = 3.0  # of the drive (1/kp + velocity lag): a settle onto a dwell's bottom
+DWELL_SETTLE_ROUNDS = 10  # drive-model rounds aiming a settled dwell's stroke and slowing its settle
 XY_ACCELERATION_SHARES = (1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3)  # of an S1 move's limits,
 XY_JERK_SHARES = (1.0, 0.3, 0.1, 0.03, 0.01, 3e-3, 1e-3, 3e-4)  # tried fastest first
 XY_HEADROOM_TRIES = 24  # moves tried before the plain (uncompensated) one
@@ -398,10 +402,27 @@ class _Job:
         """The drive-model correction (3, k) of a dwelled hole's last stroke and its dwell,
         at the servo instants from the stroke's start (the first ``phase`` periods after
         it; a stiff drive's bottom depends on where they fall), and how long after the
-        stroke's end the feedback arrives (s). The command (stroke plus correction) makes
-        the feedback follow the stroke to rest at the bottom and hold there, where a plain
-        stroke's feedback would overshoot it and come back (velocity lag) or creep in late
-        (no full feed-forward). The correction fades in over the first DWELL_BLEND_S of
+        stroke's end the feedback arrives (s): the command (stroke to the bottom plus
+        correction) makes the feedback stop at the bottom and hold it. Learned first
+        (_learned_dwell, the fastest); where its feedback still misses the bottom by
+        more than DWELL_KEPT (a drive far behind after a fast re-entry, ringing or without
+        acceleration headroom), the stroke is aimed and settled instead (_settled_dwell),
+        and whichever lands closer is kept."""
+        key = (start, bottom, phase, *(_state(m, 0.0)[0] for m in lead_in))
+        if key not in self._dwells:
+            learned = self._learned_dwell(start, lead_in, bottom, phase)
+            if abs(learned[2]) > max(DWELL_KEPT, self.machine.drives["z"].resolution):
+                learned = min(learned, self._settled_dwell(start, lead_in, bottom, phase), key=lambda c: abs(c[2]))
+            self._dwells[key] = learned[:2]
+        return self._dwells[key]
+
+    def _learned_dwell(self, start: float, lead_in: tuple[RuckigMove, ...], bottom: float,
+                       phase: float) -> tuple[np.ndarray, float, float]:
+        """dwell_correction learned against the drive model, and its feedback's deepest
+        point past the bottom (m, negative = deeper). The correction makes the feedback
+        follow the stroke to rest at the bottom and hold there, where a plain stroke's
+        feedback would overshoot it and come back (velocity lag) or creep in late
+        (no full feed-forward). It fades in over the first DWELL_BLEND_S of
         the stroke (the drive arrives lagging from the moves before it; longer, into the
         dwell, where the command would break the Z limits otherwise) and out over the
         dwell's last DWELL_BLEND_S (what is left there chases encoder counts); where the
@@ -409,38 +430,84 @@ class _Job:
         command rests at the bottom until the feedback is there, and the dwell counts from
         then: it is held on feedback."""
         c = self.cycle
-        key = (start, bottom, phase, *(_state(m, 0.0)[0] for m in lead_in))
-        if key not in self._dwells:
-            period = c.servo_period
-            stroke = self._stroke(start, bottom)
-            drive = DriveModel(self.machine, period, ("z",))
-            band = compensation_band(drive, self.machine.axes["z"].max_acceleration)  # a coarse encoder's counts
-            tolerance = max(DWELL_TOLERANCE, float(drive.resolution[0]))
-            late = 0
-            blends = [min(DWELL_BLEND_S, 0.5 * stroke.duration)] + [DWELL_BLEND_S * 2 ** k for k in range(4)]
-            for _ in range(2):  # learn, then learn again with the rest the feedback needs
-                p, v, a, k0 = self._reference(start, lead_in, stroke, None, math.ceil(c.dwell / period) + late, phase)
-                tau = (phase + np.arange(len(p)) - k0) * period
-                fade = min(DWELL_BLEND_S, 0.5 * c.dwell)
-                for blend in blends:  # a drive far behind needs a longer fade-in within the limits
-                    share = np.clip(np.minimum(tau / blend, (tau[-1] - tau) / fade), 0.0, 1.0)
-                    weight = np.sin(0.5 * math.pi * share) ** 2
-                    correction = learn_correction(drive, p[:, None], v[:, None], a[:, None], 0, band, weight)
-                    kept = settled(correction[k0:], len(p) - k0 - 1, period)
-                    command = np.zeros((3, len(p)))
-                    command[:, k0:k0 + kept.shape[1]] = kept[:, :, 0]
-                    if (np.max(np.abs(v + command[1])) <= self.z.velocity
-                            and np.max(np.abs(a + command[2])) <= self.z.acceleration):
-                        break
-                feedback = drive.simulate(*(x[:, None] + dx[:, None] for x, dx in zip((p, v, a), command)))[0][:, 0]
-                end = k0 + math.ceil(stroke.duration / period - phase)  # first instant at rest
-                off = np.nonzero(np.abs(feedback[end:] - bottom) > tolerance)[0]
-                arrival = int(off[-1]) + 1 if len(off) else 0
-                if arrival <= late:
+        period = c.servo_period
+        stroke = self._stroke(start, bottom)
+        drive = DriveModel(self.machine, period, ("z",))
+        band = compensation_band(drive, self.machine.axes["z"].max_acceleration)  # a coarse encoder's counts
+        late = 0
+        blends = [min(DWELL_BLEND_S, 0.5 * stroke.duration)] + [DWELL_BLEND_S * 2 ** k for k in range(4)]
+        for _ in range(2):  # learn, then learn again with the rest the feedback needs
+            p, v, a, k0 = self._reference(start, lead_in, stroke, None, math.ceil(c.dwell / period) + late, phase)
+            tau = (phase + np.arange(len(p)) - k0) * period
+            fade = min(DWELL_BLEND_S, 0.5 * c.dwell)
+            for blend in blends:  # a drive far behind needs a longer fade-in within the limits
+                share = np.clip(np.minimum(tau / blend, (tau[-1] - tau) / fade), 0.0, 1.0)
+                weight = np.sin(0.5 * math.pi * share) ** 2
+                correction = learn_correction(drive, p[:, None], v[:, None], a[:, None], 0, band, weight)
+                kept = settled(correction[k0:], len(p) - k0 - 1, period)
+                command = np.zeros((3, len(p)))
+                command[:, k0:k0 + kept.shape[1]] = kept[:, :, 0]
+                if (np.max(np.abs(v + command[1])) <= self.z.velocity
+                        and np.max(np.abs(a + command[2])) <= self.z.acceleration):
                     break
-                late = arrival
-            self._dwells[key] = (kept[:, :, 0], late * period)
-        return self._dwells[key]
+            feedback = drive.simulate(*(x[:, None] + dx[:, None] for x, dx in zip((p, v, a), command)))[0][:, 0]
+            arrival = self._arrival(feedback, k0 + math.ceil(stroke.duration / period - phase), bottom)
+            if arrival <= late:
+                break
+            late = arrival
+        return kept[:, :, 0], late * period, float(np.min(feedback[k0:]) - bottom)
+
+    def _settled_dwell(self, start: float, lead_in: tuple[RuckigMove, ...], bottom: float,
+                       phase: float) -> tuple[np.ndarray, float, float]:
+        """dwell_correction without learning, as (correction, arrival, deepest point past
+        the bottom): the stroke turns where the drive model's feedback reaches the bottom
+        and no deeper (aimed like a plain stroke's turning point), then the command
+        settles onto the bottom in a smooth rest-to-rest move over
+        DWELL_SETTLE_TIME_CONSTANTS of the drive (slower while the settle itself would
+        pass the bottom), where the feedback comes to rest for the dwell. The command
+        stays within the plain Z limits: it holds where a learned correction has no room
+        (a drive far behind after a fast re-entry, or one that rings)."""
+        c = self.cycle
+        period = c.servo_period
+        stroke = self._stroke(start, bottom)
+        drive = DriveModel(self.machine, period, ("z",))
+        settle_time = DWELL_SETTLE_TIME_CONSTANTS * (1.0 / float(drive.kp[0]) + float(drive.lag[0]))
+        aim = 0.5 * max(DWELL_TOLERANCE, float(drive.resolution[0]))
+        turn, late, best = bottom, 0, None
+        for _ in range(DWELL_SETTLE_ROUNDS):
+            aimed = self._stroke(start, turn)
+            # jerk alone limits it to the settle time: the smoothest rest-to-rest move
+            jerk = min(self.z.jerk, 32.0 * abs(turn - bottom) / settle_time**3) or self.z.jerk
+            settle = _z_move(Limits(self.z.velocity, self.z.acceleration, jerk), turn, 0.0, 0.0, bottom,
+                             duration=settle_time)
+            settled_at = math.ceil((aimed.duration + settle.duration - stroke.duration) / period)
+            tail = math.ceil(c.dwell / period) + max(late, settled_at) + math.ceil(settle_time / period)
+            p, v, a, k0 = self._reference(start, lead_in, aimed, settle, tail, phase)
+            drive.reset(p[:1])
+            drive.state.velocity[:] = v[0]
+            feedback = drive.run(p[:, None], v[:, None], a[:, None])[0][:, 0]
+            late = max(settled_at, self._arrival(feedback, k0 + math.ceil(stroke.duration / period - phase), bottom))
+            deepest = k0 + int(np.argmin(feedback[k0:]))
+            error = float(feedback[deepest] - bottom)
+            if best is None or abs(error) < abs(best[2]):
+                plain = np.stack(_z_samples(stroke, (phase + np.arange(len(p) - k0)) * period))
+                best = (np.stack((p, v, a))[:, k0:] - plain, late * period, error)
+            if abs(error) <= aim:
+                break
+            if (phase + deepest - k0) * period > aimed.duration + 0.5 * settle.duration:
+                settle_time *= 2.0  # the settle itself passes the bottom: slower, the turn stays
+                continue
+            turn -= error
+            if not self.machine.axes["z"].within_travel(turn):
+                raise ValueError(f"bottom_z: the drive needs a command at {turn} m, outside the Z travel")
+        return best
+
+    def _arrival(self, feedback: np.ndarray, end: int, bottom: float) -> int:
+        """Servo periods after sample ``end`` (the stroke's end) from which the feedback
+        stays at the bottom within DWELL_TOLERANCE (or an encoder count)."""
+        tolerance = max(DWELL_TOLERANCE, self.machine.drives["z"].resolution)
+        off = np.nonzero(np.abs(feedback[end:] - bottom) > tolerance)[0]
+        return int(off[-1]) + 1 if len(off) else 0
 
     def _dwelled_stroke(self, builder: PlanBuilder, t: float, hole: int) -> float:
         """A dwelled hole's last stroke and its dwell as one compensated Z command

@@ -54,7 +54,9 @@ after its retract and re-entry) turns where the drive model's feedback turns at 
 programmed depth (turning_point); a dwelled hole's last stroke ends at the depth itself,
 pre-compensated with the drive model so that its feedback stops there without passing it
 and holds it for the dwell (dwell_correction: learned, or where that cannot land, aimed
-and then settled onto the depth).
+and then settled onto the depth). Below R no Z acceleration ramp is shorter than
+BOTTOM_TURN_PERIODS servo periods, so that no bottom depends on where the servo
+instants fall.
 
 Conventional cycle (overlap=False), like G81 with G99: X/Y rapid, Z rapid to R, feed to
 depth, rapid up to R + RETURN_CLEARANCE, each move after the previous one ends.
@@ -96,6 +98,7 @@ XY_COMMAND_LEAD = XY_LEAD_PERIODS - XY_FIXED_PERIODS + 1  # periods: from its la
 XY_SETTLED_COUNTS = 0.25  # encoder counts: an X/Y correction below this has settled
 BOTTOM_ROUNDS = 6  # drive-model rounds placing the Z command's turning point at a hole's bottom
 BOTTOM_PHASES = 4  # offsets of a stroke against the servo grid that its turning point is aimed over
+BOTTOM_TURN_PERIODS = 5  # servo periods at least that a Z acceleration ramp below R lasts (z_turn)
 BOTTOM_STEADY_S = 0.3  # s of steady feed before R in those rounds: the drive settles into it
 DWELL_BLEND_S = 0.05  # s: a dwelled hole's stroke correction fades in over this (or half the stroke)
 DWELL_PHASES = 8  # offsets against the servo grid a dwelled stroke's correction is learned at
@@ -266,6 +269,14 @@ class _Job:
         self.cycle = cycle
         self.start = start
         self.z = axis_limits(machine.axes["z"])
+        # Below R every Z acceleration ramp (feed strokes, a peck's retract and re-entry,
+        # the exit from a bottom) lasts at least BOTTOM_TURN_PERIODS: a shorter one is a
+        # pulse that the drive's feed-forward sees at only a few servo instants, so the
+        # feedback's bottom would depend on where they fall (about 30 um apart on a drawn
+        # drive with full acceleration feed-forward, a 9 ms velocity lag, kp 20/s and
+        # jerk 2.8e5 m/s^3). The shipped mill3 and mill3_soft are below this jerk anyway.
+        turn_jerk = self.z.acceleration / (BOTTOM_TURN_PERIODS * cycle.servo_period)
+        self.z_turn = Limits(self.z.velocity, self.z.acceleration, min(self.z.jerk, turn_jerk))
         if cycle.feed > self.z.velocity:
             raise ValueError(f"feed: {cycle.feed} m/s exceeds the Z rapid {self.z.velocity} m/s")
         for name, lo in (("bottom_z", cycle.bottom_z), ("start z", start["z"])):
@@ -330,8 +341,10 @@ class _Job:
         return self._approaches[(surface, top, bottom)]
 
     def _peck_move(self, p0: float, v0: float, a0: float, p1: float, v1: float, speed: float | None) -> RuckigMove:
-        """A Z move of a peck sequence (peck.ZMove): at ``speed``, or rapid if None."""
-        lim = self.z if speed is None else Limits(speed, self.z.acceleration, self.z.jerk)
+        """A Z move of a peck sequence (peck.ZMove): at ``speed``, or rapid if None; its
+        acceleration ramps as long as at a bottom (z_turn): a slow drive still carries a
+        retract's or re-entry's sharp ramps into the last peck."""
+        lim = self.z_turn if speed is None else Limits(speed, self.z.acceleration, self.z_turn.jerk)
         return _z_move(lim, p0, v0, a0, p1, v1)
 
     def _reference(self, start: float, lead_in: tuple[RuckigMove, ...], stroke: RuckigMove,
@@ -381,7 +394,7 @@ class _Job:
                 # that every hole lands close.
                 errors = []
                 for exit_move, phase in itertools.product(
-                        (self.fast_exit(turn, c.r_z).move, _z_move(self.z, turn, 0.0, 0.0, c.r_z + RETURN_CLEARANCE)),
+                        (self.fast_exit(turn, c.r_z).move, _z_move(self.z_turn, turn, 0.0, 0.0, c.r_z + RETURN_CLEARANCE)),
                         np.arange(BOTTOM_PHASES) / BOTTOM_PHASES):
                     p, v, a, k0 = self._reference(start, lead_in, stroke, exit_move,
                                                   math.ceil(exit_move.duration / period) + steady, phase)
@@ -533,7 +546,7 @@ class _Job:
     def _stroke(self, top: float, turn: float) -> RuckigMove:
         """The plain feed stroke from a hole's R plane, at feed, to the turning point."""
         if (top, turn) not in self._strokes:
-            self._strokes[(top, turn)] = _z_move(Limits(self.cycle.feed, self.z.acceleration, self.z.jerk),
+            self._strokes[(top, turn)] = _z_move(Limits(self.cycle.feed, self.z.acceleration, self.z_turn.jerk),
                                                  top, -self.cycle.feed, 0.0, turn)
         return self._strokes[(top, turn)]
 
@@ -541,7 +554,7 @@ class _Job:
         """Full acceleration out of a hole from ``bottom`` up through the X/Y ``plane``:
         mode 1 if rapid is reached below it, else 2."""
         if (bottom, plane) not in self._exits:
-            z = self.z
+            z = self.z_turn
             run = _z_move(z, bottom, 0.0, 0.0, None, z.velocity)
             if _state(run, run.duration)[0] <= plane:
                 move = _z_move(z, bottom, 0.0, 0.0, plane, z.velocity)
@@ -640,7 +653,7 @@ class _Job:
 
     def _slow_exit(self, speed: float, bottom: float, plane: float) -> _Retract | None:
         """Mode 3: reach the X/Y plane at ``speed`` with zero acceleration, or None if that needs an overshoot."""
-        return _slow_exit(self.z, bottom, plane, float(speed))
+        return _slow_exit(self.z_turn, bottom, plane, float(speed))
 
     def cost(self, retract: _Retract, air_needed: float) -> float:
         """Time from the bottom to R at feed over the next hole: retract plus air arc."""
@@ -685,7 +698,7 @@ class _Job:
             fast = self.retract(0.0, self.n - 1)
             stop = _z_move(self.z, *fast.state, None, 0.0)
             return fast.mode, fast.move, fast.t_r, stop
-        move = _z_move(self.z, self.turning_point(self.n - 1), 0.0, 0.0, c.r_z + RETURN_CLEARANCE)
+        move = _z_move(self.z_turn, self.turning_point(self.n - 1), 0.0, 0.0, c.r_z + RETURN_CLEARANCE)
         return 3, move, _crossing(move, c.r_z), None
 
 

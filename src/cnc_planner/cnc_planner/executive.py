@@ -182,11 +182,16 @@ class Executive:
         """The bridge's latest diagnostic: ``alarm`` is "" when it reports no error."""
         self.bridge_alarm = alarm
 
-    def tick(self, now_ns: int, planning: bool = False) -> Output:
-        """Advance to ``now``: start the next job, stream ahead, report progress and ends.
+    def tick(self, now_ns: int, planning: bool = False, clock_ns: int = 0) -> Output:
+        """Advance to ``now`` (the latest feedback's time): start the next job, stream ahead,
+        report progress and ends.
 
         ``planning``: goals are being planned beside the stream, which then runs further
-        ahead, as it does while its own job's next segment is planned."""
+        ahead, as it does while its own job's next segment is planned. ``clock_ns``: the
+        bridge's clock as this process reads it now (real time: the wall). Feedback reaches
+        the planner late under CPU load (chunks came up to 140 ms late on a loaded 2-CPU
+        host), so setpoints are kept ahead of that clock when it is ahead of the feedback;
+        progress and the job's end stay on the feedback."""
         out = Output()
         if self.active is None and self.queue and self.position is not None and self.bridge_alarm == "":
             self._start(now_ns, out)
@@ -196,7 +201,7 @@ class Executive:
         stream = job.stream
         planning = planning or job.plan.planning
         ahead = self.settings.planning_lookahead_ns if planning else self.settings.lookahead_ns
-        while not stream.done and stream.served_until_ns < now_ns + ahead:
+        while not stream.done and stream.served_until_ns < max(now_ns, clock_ns) + ahead:
             chunk = stream.next_chunk()
             out.chunks.append(chunk)
             self._events_until(job, chunk.end_ns, out)

@@ -26,6 +26,7 @@ from .executive import Executive, Output, Settings
 from .streaming import Chunk
 
 
+TOP_UP_PERIOD = 0.02  # s of wall time between top-ups of the stream that no feedback prompted
 PARAMETERS = {
     "machine": Param("mill3", "machine description config/machines/<name>.yaml (or a path), the one "
                               "the bridge drives", read_only=True),
@@ -89,6 +90,7 @@ class PlannerNode(Node):
         self.intake = ThreadPoolExecutor(max_workers=1, thread_name_prefix="cnc_planner_intake")
         self.preparing: deque[Future] = deque()
         self.create_timer(0.02, self.admit_prepared, clock=self.wall)
+        self.create_timer(TOP_UP_PERIOD, self.top_up, clock=self.wall)
         self.get_logger().info(f"planning for machine '{machine.name}' joints {self.joints}")
 
     def on_parameters_set(self, parameters: list[Parameter]) -> None:
@@ -106,10 +108,24 @@ class PlannerNode(Node):
         the clock that executes them (sim or wall), never on a clock that may lag it."""
         return self.latest_feedback_ns
 
+    def clock_ns(self) -> int:
+        """The bridge's clock as read here now (real time: the wall; simulation: /clock)."""
+        return self.get_clock().now().nanoseconds
+
+    def advance(self, planning: bool) -> None:
+        """Tick the executive on the feedback's time, setpoints kept ahead of the clock too."""
+        self.publish(self.executive.tick(self.now_ns(), planning=planning, clock_ns=self.clock_ns()))
+
+    def top_up(self) -> None:
+        """Keep the running job's setpoints ahead of the bridge's clock even while its
+        feedback is slow to arrive (real time under CPU load)."""
+        if self.latest_feedback_ns and self.trajectory_pub.get_subscription_count():
+            self.advance(planning=bool(self.preparing))
+
     def publish(self, out: Output) -> None:
         # The bridge's clock now, not at the feedback this output was made for (real time:
         # the wall; simulation: /clock, both the node's clock), so a late start is re-timed.
-        self.executive.retime(out, max(self.latest_feedback_ns, self.get_clock().now().nanoseconds))
+        self.executive.retime(out, max(self.latest_feedback_ns, self.clock_ns()))
         for chunk in out.chunks:
             self.trajectory_pub.publish(chunk_to_msg(chunk))
         for event in out.events:
@@ -125,7 +141,7 @@ class PlannerNode(Node):
 
     def on_goal(self, msg: String) -> None:
         # The running job's setpoints go further ahead before planning starts taking the GIL.
-        self.publish(self.executive.tick(self.now_ns(), planning=True))
+        self.advance(planning=True)
         self.preparing.append(self.intake.submit(self.executive.prepare, msg.data))
 
     def admit_prepared(self) -> None:
@@ -136,7 +152,7 @@ class PlannerNode(Node):
         self.admit_prepared()
         for status in self.executive.cancel(decode_cancel(msg.data), self.now_ns(), preparing=bool(self.preparing)):
             self.publish_status(status)
-        self.publish(self.executive.tick(self.now_ns(), planning=bool(self.preparing)))
+        self.advance(planning=bool(self.preparing))
 
     def on_feedback(self, msg: JointState) -> None:
         self.last_feedback_wall = self.wall.now()
@@ -146,7 +162,7 @@ class PlannerNode(Node):
         self.admit_prepared()
         if self.trajectory_pub.get_subscription_count() == 0:
             return  # no bridge listening (yet): setpoints would be lost, so nothing starts
-        self.publish(self.executive.tick(self.latest_feedback_ns, planning=bool(self.preparing)))
+        self.advance(planning=bool(self.preparing))
 
     def on_diagnostics(self, msg: DiagnosticArray) -> None:
         stamp = msg.header.stamp.sec * NS + msg.header.stamp.nanosec

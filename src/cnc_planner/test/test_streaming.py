@@ -576,6 +576,26 @@ def test_setpoints_run_further_ahead_while_a_goal_is_planned_beside_the_stream()
     assert sim.ex.settings.planning_lookahead_ns <= ahead < sim.ex.settings.planning_lookahead_ns + 100 * MS
 
 
+def test_setpoints_stay_ahead_of_the_clock_when_the_feedback_arrives_late():
+    """Real time under CPU load: the latest feedback the planner has heard is 200 ms old,
+    but the bridge's clock (the wall, as the planner reads it) is now: the stream is kept
+    a lookahead ahead of the clock, and the job still ends on the feedback."""
+    sim = Sim()
+    sim.submit(move_job("late", [{"rapid": {"x": 100}}, {"linear": {"x": 0}, "feed": 300}]))
+    sim.run_until(lambda: sim.ex.active is not None and sim.ex.active.stream is not None)
+    sim.run_for(0.5)
+    stream = sim.ex.active.stream
+    clock = sim.now + 200 * MS
+    sim.ex.tick(sim.now, clock_ns=clock)
+    ahead = stream.served_until_ns - clock
+    assert sim.ex.settings.lookahead_ns <= ahead < sim.ex.settings.lookahead_ns + 100 * MS
+    served = stream.served_until_ns
+    sim.ex.tick(sim.now, clock_ns=sim.now - 50 * MS)  # a clock behind the feedback: the feedback counts
+    assert stream.served_until_ns == served
+    end = sim.ex.tick(stream.end_ns - MS, clock_ns=stream.end_ns + 10 * MS)
+    assert sim.ex.active is not None and not [s for s in end.statuses if s.state == "succeeded"]
+
+
 def first_chunks(sim: Sim):
     """Tick (feedback at rest) until the executive hands out the job's first chunks."""
     sim.ex.feedback(dict(zip(MILL.joint_names, sim.position.tolist())))

@@ -157,6 +157,7 @@ def main() -> int:
     parser.add_argument("--quick", action="store_true", help="both jobs cut to a tenth (a smoke run)")
     parser.add_argument("--only", choices=("plate", "raster"), help="run one of the two jobs")
     parser.add_argument("--real-time", action="store_true", help="a 10-minute raster at 1x on the wall clock")
+    parser.add_argument("--keep", type=Path, help="keep the recordings in this folder (one bag per job)")
     args = parser.parse_args()
     jobs = [plate_doc(32 if args.quick else 100), raster_doc(88 if args.quick else 880)]
     jobs = [doc for doc in jobs if args.only is None or doc["job_id"].startswith(args.only)]
@@ -165,7 +166,7 @@ def main() -> int:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for doc in jobs:
-            bag = Path(tmp) / doc["job_id"]
+            bag = (args.keep or Path(tmp)) / doc["job_id"]
             print(f"running {doc['job_id']}", flush=True)
             result = run(doc, bag, simulation=not args.real_time)
             print(f"  checking the recording of {doc['job_id']}", flush=True)

@@ -116,3 +116,22 @@ def test_pecked_and_dwelled_holes_reach_depth_on_any_machine(variant):
 
     run()
     assert "verified" in outcomes, outcomes
+
+
+def test_a_drive_too_slow_for_the_overlap_is_refused_by_name_and_drills_conventionally():
+    """A drawn Z drive (8.2 ms velocity lag) on which no overlapped G83 timing keeps X/Y on
+    the hole below R: the job is refused up front, naming drill.overlap and the drive, not
+    an internal error; with overlap: off the same holes plan within the bridge's limits."""
+    base = load_machine("mill3")
+    axes = {**base.axes, "z": dataclasses.replace(base.axes["z"], max_jerk=6.1e5)}
+    drives = {**base.drives, "z": dataclasses.replace(base.drives["z"], kp=135.9, velocity_ff=0.62, accel_ff=0.30,
+                                                      velocity_lag=8.2e-3)}
+    machine = dataclasses.replace(base, name="mill3_drawn", axes=axes, drives=drives)
+    doc = {**load_job_file(JOBS / EXAMPLES["drill"]), "machine": machine.name}
+    doc["drill"] = {**doc["drill"], "peck": {"depth": 2.0}}
+    with pytest.raises(JobError) as refused:
+        plan_job(parse_job(doc), machine)
+    assert refused.value.field == "drill.overlap" and INTERNAL not in refused.value.reason
+    assert "velocity_lag 8.2 ms" in refused.value.reason and "overlap: off" in refused.value.reason
+    doc["drill"] = {k: v for k, v in doc["drill"].items() if k != "mode"} | {"overlap": "off"}
+    check_plan(plan_job(parse_job(doc), machine), machine, SERVO_PERIOD, "drill")

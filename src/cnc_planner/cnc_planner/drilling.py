@@ -73,6 +73,7 @@ import numpy as np
 from ruckig import ControlInterface, InputParameter
 
 from cnc_msgs_py.machine import SPINDLE, Machine
+from cnc_msgs_py.schema import JobError
 from cnc_servo_bridge.drive import DriveModel
 
 from .builder import PlanBuilder
@@ -1102,7 +1103,12 @@ def _safe_gaps(job: _Job, emit: Emit, t0: float, e_down: np.ndarray, e_up: np.nd
             return e_down, e_up
         e_down, e_up = new_down, new_up
     if rounds > 1:
-        raise RuntimeError("no safe timing found against the servo lag")
+        drive = job.machine.drives["z"]
+        raise JobError("drill.overlap" if job.cycle.overlap else "drill",
+                       f"no timing found in {rounds} drive-model rounds that keeps X/Y on the hole while the "
+                       f"tip is below R against the servo lag (z: kp {drive.kp:g}/s, velocity_lag "
+                       f"{drive.velocity_lag * 1e3:.3g} ms)" + ("; overlap: off drills conventionally"
+                                                                if job.cycle.overlap else ""))
     return e_down, e_up
 
 

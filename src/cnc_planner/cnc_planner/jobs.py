@@ -447,6 +447,8 @@ def settle_time(builder: PlanBuilder, kin: Kinematics, t0: float, tol: float, pe
 def _drill(builder: PlanBuilder, cycle: DrillCycle) -> None:
     try:
         plan_drilling(builder, cycle)
+    except JobError:
+        raise  # names its field already
     except ValueError as err:  # one line: ruckig appends its whole input to its errors
         first = (str(err).splitlines() or [""])[0]
         name, sep, reason = first.partition(": ")

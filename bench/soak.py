@@ -33,7 +33,7 @@ sys.path[:0] = [str(ROOT / "src" / p) for p in ("cnc_msgs_py", "cnc_planner", "c
 
 from cnc_msgs_py.job import load_job_file, parse_job  # noqa: E402
 from cnc_msgs_py.machine import load_machine  # noqa: E402
-from load import vm_hwm_kib  # noqa: E402
+from load import feedback_continuity, vm_hwm_kib  # noqa: E402
 from publish import RESULTS, write_result  # noqa: E402
 
 JOBS = ROOT / "config" / "jobs"
@@ -127,10 +127,12 @@ def check_recording(bag: Path) -> dict:
             previous_end = end
             chunks += 1
             points += len(msg.points)
-    steps = np.diff(np.sort(np.array(feedback_t, dtype=np.int64)))
+    stamps = np.sort(np.array(feedback_t, dtype=np.int64))
+    continuity = (feedback_continuity((stamps - stamps[0]) * 1e-9, PERIOD_NS * 1e-9) if len(stamps) > 1
+                  else {"missing": 0, "gap_ms": 0.0})
     return {"chunks": chunks, "points": points, "gaps": gaps, "overlaps": overlaps,
-            "feedback_samples": len(feedback_t), "feedback_missing": int(np.sum(steps // PERIOD_NS - 1)),
-            "longest_gap_ms": float(steps.max() / 1e6) if len(steps) else 0.0,
+            "feedback_samples": len(feedback_t), "feedback_missing": continuity["missing"],
+            "longest_gap_ms": continuity["gap_ms"],
             "statuses": len(progress), "monotonic": bool(np.all(np.diff(progress) >= 0)),
             "last_progress": progress[-1] if progress else 0.0, "detail": detail}
 

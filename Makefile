@@ -20,12 +20,12 @@ browser:
 	  export DEBIAN_FRONTEND=noninteractive; apt-get update -qq >/dev/null && \
 	  apt-get install -y -qq --no-install-recommends chromium fonts-liberation >/dev/null; }
 
-$(STAMP): requirements.txt src/cnc_msgs_py/setup.py src/cnc_planner/setup.py src/cnc_servo_bridge/setup.py \
+$(STAMP): requirements.txt src/cnc_msgs_py/setup.py src/cnc_analysis/setup.py src/cnc_planner/setup.py src/cnc_servo_bridge/setup.py \
           src/cnc_servo_bridge/cnc_servo_bridge/_drive_kernel.c
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -r requirements.txt
-	$(PY) -m pip install --quiet --no-deps -e src/cnc_msgs_py -e src/cnc_servo_bridge -e src/cnc_planner
+	$(PY) -m pip install --quiet --no-deps -e src/cnc_msgs_py -e src/cnc_analysis -e src/cnc_servo_bridge -e src/cnc_planner
 	touch $(STAMP)
 
 demo: setup

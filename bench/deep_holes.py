@@ -27,15 +27,15 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT / "src" / p) for p in ("cnc_msgs_py", "cnc_planner", "cnc_servo_bridge")]
+sys.path[:0] = [str(ROOT / "src" / p) for p in ("cnc_msgs_py", "cnc_analysis", "cnc_planner", "cnc_servo_bridge")]
 
 from cnc_msgs_py.job import parse_job  # noqa: E402
 from cnc_msgs_py.machine import SPINDLE, load_machine  # noqa: E402
-from cnc_planner.jobs import plan_job  # noqa: E402
-from cnc_planner.report import simulated_feedback  # noqa: E402
-from cnc_planner.vibration import Vibration, _speed_limits  # noqa: E402
-from cnc_servo_bridge.aircut import analyze_aircut  # noqa: E402
-from cnc_servo_bridge.drill_analysis import analyze_drilling  # noqa: E402
+from cnc_planner.planning import plan_job  # noqa: E402
+from cnc_planner.prediction import simulated_feedback  # noqa: E402
+from cnc_planner.vibration.waveform import Vibration, _speed_limits  # noqa: E402
+from cnc_analysis.aircut import analyze_aircut  # noqa: E402
+from cnc_analysis.drilling import analyze_drilling  # noqa: E402
 from publish import RESULTS, write_result  # noqa: E402
 
 MACHINE = load_machine("mill3")

@@ -16,15 +16,16 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT / "src" / p) for p in ("cnc_msgs_py", "cnc_planner", "cnc_servo_bridge")]
+sys.path[:0] = [str(ROOT / "src" / p) for p in ("cnc_msgs_py", "cnc_analysis", "cnc_planner", "cnc_servo_bridge")]
 
 from cnc_msgs_py.job import parse_job  # noqa: E402
 from cnc_msgs_py.machine import load_machine  # noqa: E402
-from cnc_planner.builder import PlanBuilder  # noqa: E402
-from cnc_planner.drilling import DrillCycle, lower_bound_time, plan_drilling  # noqa: E402
-from cnc_planner.jobs import drill_cycle, plan_job  # noqa: E402
+from cnc_planner.motion.builder import PlanBuilder  # noqa: E402
+from cnc_planner.kinds.drill.drilling import DrillCycle, lower_bound_time, plan_drilling  # noqa: E402
+from cnc_planner.planning import plan_job  # noqa: E402
+from cnc_planner.kinds.drill.block import drill_cycle  # noqa: E402
 from cnc_planner.kinematics import Kinematics  # noqa: E402
-from cnc_servo_bridge.drill_analysis import analyze_drilling  # noqa: E402
+from cnc_analysis.drilling import analyze_drilling  # noqa: E402
 from cnc_servo_bridge.drive import DriveModel  # noqa: E402
 from publish import write_result  # noqa: E402
 
@@ -90,7 +91,7 @@ gentle: gentle_air_accel cycle time change (ms) and air energy change (integral 
 X/Y pre-compensation: uncompensated, X/Y feedback settles within 10 um only 30-50 ms after
 its command ends (kp = 50/s, no acceleration feed-forward on mill3) and the tip may not
 pass R before (plain column, 6-13 % over the bound on shallow holes). The compensated
-command (ruckig move + vibration.learn_correction against the drive model) brings the
+command (ruckig move + motion.compensation.learned_command against the drive model) brings the
 feedback within 10 um ~6 ms BEFORE the move ends; the safe-gap search takes the rest:
 modes 1/2 are now within 0.2-0.9 % of the bound. What remains there (gap 5-9 ms per
 hole, not broken down further):

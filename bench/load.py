@@ -26,12 +26,13 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT / "src" / p) for p in ("cnc_msgs_py", "cnc_planner", "cnc_servo_bridge")]
+sys.path[:0] = [str(ROOT / "src" / p) for p in ("cnc_msgs_py", "cnc_analysis", "cnc_planner", "cnc_servo_bridge")]
 
 from cnc_msgs_py.job import job_id_of, load_job_file, parse_job  # noqa: E402
 from cnc_msgs_py.machine import load_machine  # noqa: E402
-from cnc_planner.jobs import plan_job  # noqa: E402
-from cnc_planner.segments import SEGMENT_HOLES, plan_segments  # noqa: E402
+from cnc_planner.planning import plan_job  # noqa: E402
+from cnc_planner.segments import plan_segments  # noqa: E402
+from cnc_planner.kinds.drill import SEGMENT_HOLES  # noqa: E402
 from cnc_servo_bridge.drive import warm_up  # noqa: E402
 from publish import RESULTS, write_result  # noqa: E402
 
@@ -161,8 +162,8 @@ def cpu_s(pid: int) -> float:
 def simulate(job_file: str, out: Path, doc: dict | None = None) -> dict:
     """One job over topics, as cnc-run: sim speed, node peak RSS, chunks lost, chunk lead."""
     from cnc_planner.runner import Session, local_dds_env
-    from cnc_servo_bridge.analysis import chunks_lost
-    from cnc_servo_bridge.recording import read_run
+    from cnc_analysis.summary import chunks_lost
+    from cnc_analysis.recording import read_run
 
     doc = doc or load_job_file(JOBS / job_file)
     job_id = job_id_of(doc)
@@ -205,7 +206,7 @@ def chunk_lead(bag: Path) -> np.ndarray:
     The recorder stamps every message with the latest bridge time it had heard of (/clock
     or joint_states); positive lead = the chunk arrived ahead of its first setpoint."""
     from rosbags.highlevel import AnyReader
-    from cnc_servo_bridge.recording import TYPESTORE
+    from cnc_analysis.recording import TYPESTORE
 
     leads = []
     with AnyReader([bag], default_typestore=TYPESTORE) as reader:

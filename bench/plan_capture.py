@@ -12,7 +12,7 @@ import hashlib
 import os
 import pickle
 
-import cnc_planner.jobs as _jobs
+import cnc_planner.planning as _planning
 import cnc_planner.segments as _segments
 
 _seen: dict[str, bytes] = {}
@@ -29,7 +29,7 @@ def _recording(name: str, fn):
     return wrapper
 
 
-_jobs.plan_job = _recording("plan_job", _jobs.plan_job)
+_planning.plan_job = _recording("plan_job", _planning.plan_job)
 _segments.plan_segments = _recording("plan_segments", _segments.plan_segments)
 
 

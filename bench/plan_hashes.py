@@ -29,13 +29,13 @@ import numpy as np
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT / "src" / p) for p in ("cnc_msgs_py", "cnc_planner", "cnc_servo_bridge")]
+sys.path[:0] = [str(ROOT / "src" / p) for p in ("cnc_msgs_py", "cnc_analysis", "cnc_planner", "cnc_servo_bridge")]
 
 from cnc_msgs_py.job import decode_job, parse_job  # noqa: E402
 from cnc_msgs_py.machine import MachineError, load_machine  # noqa: E402
 from cnc_msgs_py.schema import JobError  # noqa: E402
 from cnc_planner.cli import plan_main  # noqa: E402
-from cnc_planner.jobs import plan_job  # noqa: E402
+from cnc_planner.planning import plan_job  # noqa: E402
 from cnc_planner.segments import plan_segments  # noqa: E402
 
 PERIOD = 1e-3

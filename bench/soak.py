@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT / "src" / p) for p in ("cnc_msgs_py", "cnc_planner", "cnc_servo_bridge")]
+sys.path[:0] = [str(ROOT / "src" / p) for p in ("cnc_msgs_py", "cnc_analysis", "cnc_planner", "cnc_servo_bridge")]
 
 from cnc_msgs_py.job import load_job_file, parse_job  # noqa: E402
 from cnc_msgs_py.machine import load_machine  # noqa: E402
@@ -98,7 +98,7 @@ def check_recording(bag: Path) -> dict:
     """Chunk and feedback continuity and the progress reports, streamed from the bag."""
     from rosbags.highlevel import AnyReader
     from cnc_planner.runner import header_stamp_ns
-    from cnc_servo_bridge.recording import TYPESTORE
+    from cnc_analysis.recording import TYPESTORE
 
     chunks = gaps = overlaps = points = 0
     previous_end = None
@@ -139,10 +139,10 @@ def check_recording(bag: Path) -> dict:
 
 def drill_safety(bag: Path, doc: dict) -> dict:
     """Every hole judged on the recorded feedback."""
-    from cnc_planner.jobs import drill_cycle
+    from cnc_planner.kinds.drill.block import drill_cycle
     from cnc_planner.kinematics import Kinematics
-    from cnc_servo_bridge.drill_analysis import analyze_drilling
-    from cnc_servo_bridge.recording import read_run
+    from cnc_analysis.drilling import analyze_drilling
+    from cnc_analysis.recording import read_run
 
     machine = load_machine(doc["machine"])
     job = parse_job(doc)

@@ -33,17 +33,17 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-for package in ("cnc_msgs_py", "cnc_planner", "cnc_servo_bridge"):
+for package in ("cnc_msgs_py", "cnc_analysis", "cnc_planner", "cnc_servo_bridge"):
     sys.path.insert(0, str(ROOT / "src" / package))
 
 from cnc_msgs_py.machine import Machine, load_machine  # noqa: E402
 from cnc_msgs_py.units import rpm, to_rpm  # noqa: E402
-from cnc_planner.builder import PlanBuilder  # noqa: E402
-from cnc_planner.thread_cutting import (  # noqa: E402
+from cnc_planner.motion.builder import PlanBuilder  # noqa: E402
+from cnc_planner.kinds.thread.cutting import (  # noqa: E402
     WAVE_LIMIT_SHARE, ThreadError, ThreadSpec, ThreadVibration, check_thread, plan_thread,
 )
 from cnc_servo_bridge.drive import DriveModel  # noqa: E402
-from cnc_servo_bridge.thread_analysis import analyze_thread  # noqa: E402
+from cnc_analysis.threads import analyze_thread  # noqa: E402
 from publish import write_result  # noqa: E402
 
 SERVO_PERIOD = 1e-3

@@ -21,8 +21,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from cnc_msgs_py.units import to_mm  # noqa: E402
-from cnc_planner.turning import RoughingPlan, plan_naive, plan_roughing  # noqa: E402
-from cnc_planner.turning_examples import EXAMPLES, roughing_args  # noqa: E402
+from cnc_planner.kinds.turn.roughing import RoughingPlan, plan_naive, plan_roughing  # noqa: E402
+from cnc_planner.kinds.turn.examples import EXAMPLES, roughing_args  # noqa: E402
 from publish import RESULTS, write_result  # noqa: E402
 
 

@@ -31,15 +31,15 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-for package in ("cnc_msgs_py", "cnc_planner", "cnc_servo_bridge"):
+for package in ("cnc_msgs_py", "cnc_analysis", "cnc_planner", "cnc_servo_bridge"):
     sys.path.insert(0, str(ROOT / "src" / package))
 
 from cnc_msgs_py.machine import Machine, load_machine  # noqa: E402
 from cnc_msgs_py.units import rpm, to_rpm  # noqa: E402
-from cnc_planner.vibration import (  # noqa: E402
+from cnc_planner.vibration.waveform import (  # noqa: E402
     Vibration, VibrationError, VibrationFeed, check_vibration,
 )
-from cnc_servo_bridge.aircut import analyze_aircut  # noqa: E402
+from cnc_analysis.aircut import analyze_aircut  # noqa: E402
 from cnc_servo_bridge.drive import DriveModel  # noqa: E402
 from publish import write_result  # noqa: E402
 

@@ -18,8 +18,9 @@ from hypothesis import strategies as st
 from cnc_msgs_py.job import load_job_file, parse_job
 from cnc_msgs_py.machine import SPINDLE, Machine, load_machine
 from cnc_msgs_py.schema import JobError
-from cnc_planner.jobs import INTERNAL, SERVO_PERIOD, plan_job
-from cnc_planner.plan_check import check_plan
+from cnc_planner.planning import INTERNAL, plan_job
+from cnc_planner.motion import SERVO_PERIOD
+from cnc_planner.motion.plan_check import check_plan
 from cnc_planner.report import build_report, predicted_run
 from support import EXAMPLES, JOBS, check_verified_properties
 

@@ -19,7 +19,7 @@ import yaml
 from cnc_msgs_py.job import MAX_LIST
 from cnc_msgs_py.machine import load_machine
 from cnc_planner.executive import Executive
-from cnc_planner.jobs import INTERNAL
+from cnc_planner.planning import INTERNAL
 
 CORPUS = Path(__file__).resolve().parent / "bad_jobs"
 EXPECTED = yaml.safe_load((CORPUS / "expected.yaml").read_text())
@@ -130,7 +130,7 @@ def test_rejected_job_keeps_the_executive_usable():
 # --- over real topics ---------------------------------------------------------------------------
 def test_bad_jobs_over_topics_publish_nothing_and_the_next_job_runs(tmp_path):
     from cnc_planner.runner import Session
-    from cnc_servo_bridge.recording import read_run
+    from cnc_analysis.recording import read_run
 
     before = [n for n in FILES if not expectation(n)[1]]
     after = [n for n in FILES if expectation(n)[1]]

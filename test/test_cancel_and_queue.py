@@ -6,7 +6,7 @@ import json
 import numpy as np
 
 from cnc_planner.runner import Session
-from cnc_servo_bridge.recording import read_run
+from cnc_analysis.recording import read_run
 
 from support import running_past
 

@@ -18,7 +18,7 @@ from cnc_msgs_py.client import CncClient
 from cnc_msgs_py.job import load_job
 from cnc_msgs_py.schema import JobError
 from cnc_planner.runner import Session
-from cnc_servo_bridge.recording import read_run
+from cnc_analysis.recording import read_run
 
 from support import BIN, JOBS, cnc
 

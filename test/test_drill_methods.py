@@ -10,8 +10,9 @@ import pytest
 
 from cnc_msgs_py.job import load_job_file, parse_job
 from cnc_msgs_py.machine import load_machine
-from cnc_planner.jobs import SERVO_PERIOD, plan_job
-from cnc_servo_bridge.recording import read_run
+from cnc_planner.planning import plan_job
+from cnc_planner.motion import SERVO_PERIOD
+from cnc_analysis.recording import read_run
 from support import JOBS
 from test_methods import run_and_reanalyse
 

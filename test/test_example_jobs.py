@@ -5,7 +5,7 @@ import pytest
 
 from cnc_msgs_py.job import load_job_file, parse_job
 from cnc_msgs_py.machine import load_machine
-from cnc_planner.jobs import plan_job
+from cnc_planner.planning import plan_job
 
 from support import JOBS
 

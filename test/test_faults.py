@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from cnc_planner.runner import Session
-from cnc_servo_bridge.recording import read_run
+from cnc_analysis.recording import read_run
 
 from support import LONG, SHORT, move_job, running_past
 

@@ -10,7 +10,7 @@ from cnc_msgs_py.client import CncClient, CncClientError
 from cnc_msgs_py.machine import load_machine
 from cnc_planner.runner import Session
 from cnc_servo_bridge.bridge_node import DEACTIVATED
-from cnc_servo_bridge.recording import read_run
+from cnc_analysis.recording import read_run
 from cnc_servo_bridge.servo import DRIVES_DISABLED
 
 from support import LONG, SHORT, move_job, running_past

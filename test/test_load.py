@@ -9,8 +9,8 @@ from __future__ import annotations
 import json
 
 from cnc_planner.runner import Session
-from cnc_servo_bridge.analysis import chunks_lost
-from cnc_servo_bridge.recording import read_run
+from cnc_analysis.summary import chunks_lost
+from cnc_analysis.recording import read_run
 
 JOBS = 100
 PERIOD_NS = 1_000_000  # the executive's interpolation period

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from cnc_msgs_py.job import load_job_file
-from cnc_servo_bridge.recording import read_run
+from cnc_analysis.recording import read_run
 from support import JOBS, cnc, load_report
 
 

@@ -13,7 +13,7 @@ import yaml
 
 from cnc_msgs_py.job import load_job_file, parse_job
 from cnc_msgs_py.machine import load_machine, parse_machine
-from cnc_planner.jobs import plan_job
+from cnc_planner.planning import plan_job
 from cnc_planner.runner import Session
 
 from support import JOBS, ROOT

@@ -9,7 +9,7 @@ import pytest
 
 from cnc_planner.executive import Settings
 from cnc_planner.runner import Session
-from cnc_servo_bridge.recording import read_run
+from cnc_analysis.recording import read_run
 
 
 def test_a_job_runs_in_real_time_mode(tmp_path):

@@ -9,9 +9,9 @@ import numpy as np
 
 from cnc_msgs_py.job import job_id_of, load_job_file
 from cnc_planner.runner import Session
-from cnc_servo_bridge.analysis import chunks_lost
+from cnc_analysis.summary import chunks_lost
 from cnc_servo_bridge.lockstep import RECORDER_WINDOW_NS
-from cnc_servo_bridge.recording import read_run
+from cnc_analysis.recording import read_run
 
 from support import ROOT
 

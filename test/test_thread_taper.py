@@ -16,8 +16,8 @@ import math
 import numpy as np
 import pytest
 
-from cnc_servo_bridge.recording import read_run
-from cnc_servo_bridge.thread_analysis import analyze_thread
+from cnc_analysis.recording import read_run
+from cnc_analysis.threads import analyze_thread
 from support import cnc, load_report
 
 NPT_HALF = {"start_z": 4.0, "end_z": -14.0, "pitch": 25.4 / 14, "depth": 1.45, "passes": 6,

@@ -1,9 +1,9 @@
 """One analysis for both sides: recorded positions in, the table's figures out.
 
-Only the project's analysis code judges: cnc_servo_bridge.drill_analysis.analyze_drilling
+Only the project's analysis code judges: cnc_analysis.drilling.analyze_drilling
 (cycle time, safety violations = samples with the tip below R while X/Y is off the
-hole), cnc_servo_bridge.analysis.cycle_time (first to last axis motion),
-cnc_servo_bridge.thread_analysis.analyze_thread (passes, longest chip) and
+hole), cnc_analysis.summary.cycle_time (first to last axis motion),
+cnc_analysis.threads.analyze_thread (passes, longest chip) and
 cnc_planner.turning.StockModel (which feed travel touches material). The inputs are
 sampled positions every 1 ms, SI units.
 
@@ -22,11 +22,11 @@ from types import SimpleNamespace
 import numpy as np
 
 from cnc_msgs_py.machine import Machine
-from cnc_planner.turning import StockModel
-from cnc_servo_bridge import analysis
-from cnc_servo_bridge.drill_analysis import analyze_drilling
+from cnc_planner.kinds.turn.roughing import StockModel
+from cnc_analysis import summary
+from cnc_analysis.drilling import analyze_drilling
 from cnc_servo_bridge.drive import DriveModel
-from cnc_servo_bridge.thread_analysis import analyze_thread
+from cnc_analysis.threads import analyze_thread
 
 PERIOD = 1e-3
 SIMPLIFY_TOLERANCE = 1e-6  # m: a recorded tool path is cut into straight pieces within this
@@ -44,11 +44,11 @@ def through_servo(t: np.ndarray, axes: dict[str, np.ndarray], machine: Machine) 
 
 
 def cycle_time(t: np.ndarray, axes: dict[str, np.ndarray]) -> float:
-    """cnc_servo_bridge.analysis.cycle_time on arrays (it reads a Run's feedback)."""
+    """cnc_analysis.summary.cycle_time on arrays (it reads a Run's feedback)."""
     joints = tuple(axes)
     run = SimpleNamespace(feedback_t=np.asarray(t), feedback=np.stack([axes[j] for j in joints], axis=1),
                           joints=joints, column=joints.index)
-    return analysis.cycle_time(run, joints)
+    return summary.cycle_time(run, joints)
 
 
 def drilling(t: np.ndarray, axes: dict[str, np.ndarray], cycle) -> dict:

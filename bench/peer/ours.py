@@ -16,8 +16,8 @@ bridge's contract). Times run from the first to the last axis motion, and the ax
 for the spindle to reach speed before they move, so the spindle run-up is not counted,
 as on the LinuxCNC side, where the simulated spindle is at speed at once.
 
-Offline, a plan is made by the planner's job code (cnc_planner.jobs.PLANNERS, as
-plan_job) with the spindle run up to speed before the measured motion, and its
+Offline, a plan is made by the planner's job code (the kind's plan in cnc_planner.kinds.KINDS,
+as plan_job) with the spindle run up to speed before the measured motion, and its
 setpoints, sampled every 1 ms, go through cnc_servo_bridge.drive.DriveModel.
 """
 from __future__ import annotations
@@ -32,14 +32,15 @@ import yaml
 
 from cnc_msgs_py.job import parse_job
 from cnc_msgs_py.machine import SPINDLE, Machine, load_machine, machine_dirs
-from cnc_planner.builder import PlanBuilder
-from cnc_planner.headroom import plan_within_limits
-from cnc_planner.jobs import PLANNERS, SERVO_PERIOD
+from cnc_planner.motion.builder import PlanBuilder
+from cnc_planner.motion.derating import plan_within_limits
+from cnc_planner.kinds import KINDS
+from cnc_planner.motion import SERVO_PERIOD
 from cnc_planner.kinematics import Kinematics
-from cnc_planner.report import simulated_feedback
+from cnc_planner.prediction import simulated_feedback
 from cnc_planner.runner import Session
-from cnc_servo_bridge.recording import read_run
-from cnc_planner.timeline import Event
+from cnc_analysis.recording import read_run
+from cnc_planner.motion.timeline import Event
 
 TRAPEZOID_JERK = 1.0e6  # m/s^3 (rad/s^3 on the spindle): a/j = 9.8e-6 s
 SUFFIX = "_trapezoid"
@@ -85,7 +86,7 @@ def plan(doc: dict, machine: Machine, start_mm: dict[str, float]):
         for j in on.linear_axes:
             builder.timelines[j].add_hold(0.0, ready)
         builder.event(ready, "job_start", kind=job.kind)
-        PLANNERS[job.kind](job, on, builder, Kinematics(on, job.setup, job.tool))
+        KINDS[job.kind].plan(job, on, builder, Kinematics(on, job.setup, job.tool))
         return builder.build()
 
     result = plan_within_limits(planned, machine, SERVO_PERIOD, job.kind)  # as plan_job

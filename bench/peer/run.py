@@ -33,14 +33,14 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
-sys.path[:0] = [str(HERE), str(ROOT / "bench")] + [str(ROOT / "src" / p) for p in ("cnc_msgs_py", "cnc_planner", "cnc_servo_bridge")]
+sys.path[:0] = [str(HERE), str(ROOT / "bench")] + [str(ROOT / "src" / p) for p in ("cnc_msgs_py", "cnc_analysis", "cnc_planner", "cnc_servo_bridge")]
 
 import numpy as np  # noqa: E402
 
 from cnc_msgs_py.job import parse_job  # noqa: E402
 from cnc_msgs_py.machine import load_machine  # noqa: E402
-from cnc_planner.drilling import lower_bound_time  # noqa: E402
-from cnc_planner.jobs import drill_cycle  # noqa: E402
+from cnc_planner.kinds.drill.drilling import lower_bound_time  # noqa: E402
+from cnc_planner.kinds.drill.block import drill_cycle  # noqa: E402
 from cnc_planner.kinematics import Kinematics  # noqa: E402
 
 import analysis  # noqa: E402
@@ -320,7 +320,7 @@ def notes(rows: list[Row], lc: dict, us: dict, sessions: dict) -> list[str]:
         "viol: samples (ms) with the tip below R while X/Y is more than 10 um off the hole (analyze_drilling),",
         "  LinuxCNC G99/G98 on the drive-model feedback, ours fair/jerk on the recorded feedback; on LinuxCNC's ideal loop G99 and G98",
         "  have " + _ideal_viol(rows, lc) + ".",
-        "Times: first to last axis motion on the positions (analyze_drilling / cnc_servo_bridge.analysis.cycle_time).",
+        "Times: first to last axis motion on the positions (analyze_drilling / cnc_analysis.summary.cycle_time).",
         "Both sides start at the same point (drilling: one pitch before the first hole, 5 mm above the surface;",
         "  thread: the drive line 1 mm above the major radius at start_z; roughing: the origin Q0) with the",
         "  spindle at speed. Chips: analyze_thread (longest continuous cut of the cutting passes, spindle revs);",

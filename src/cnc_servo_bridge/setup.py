@@ -33,7 +33,7 @@ setup(
     zip_safe=False,
     maintainer="CNC control team",
     maintainer_email="dev@cnc.local",
-    description="Servo drive emulation (position loop, feed-forward, velocity lag, limits) publishing joint_states, and the analysers of recorded runs.",
+    description="Servo drive emulation (position loop, feed-forward, velocity lag, limits) publishing joint_states.",
     license="Apache-2.0",
     tests_require=["pytest"],
     entry_points={"console_scripts": [

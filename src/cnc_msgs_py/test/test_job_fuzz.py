@@ -106,7 +106,7 @@ def _machine(name: str):
 def verdict(doc) -> None:
     """parse_job and Executive.submit on one document: never a crash, a field-naming reason."""
     from cnc_planner.executive import Executive
-    from cnc_planner.jobs import INTERNAL
+    from cnc_planner.planning import INTERNAL
 
     try:
         parse_job(copy.deepcopy(doc))

@@ -18,9 +18,9 @@ from cnc_msgs_py.machine import MachineError, load_machine
 from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.topics import NAMESPACE
 
-from .jobs import plan_job
-from .progress import Progress, job_totals
-from .report_page import write_report_page
+from cnc_planner.planning import plan_job
+from cnc_planner.progress import Progress, job_totals
+from cnc_planner.report_page import write_report_page
 
 
 def _fail(tool: str, message: str, code: int = 2) -> int:
@@ -59,10 +59,10 @@ def run_main(argv: list[str] | None = None) -> int:
         _write_json(out / "report.json", report)
         write_report_page(report, [], out / "report.html", job=doc if isinstance(doc, dict) else None)
         return _fail("cnc-run", f"rejected: {reason}")
-    from .plots import write_plots
-    from .report import build_report  # rclpy-free, but only needed past this point
-    from .runner import RunError, run_job
-    from cnc_servo_bridge.recording import read_run
+    from cnc_planner.plots import write_plots
+    from cnc_planner.report import build_report  # rclpy-free, but only needed past this point
+    from cnc_planner.runner import RunError, run_job
+    from cnc_analysis.recording import read_run
 
     print(f"cnc-run: {args.job} on '{machine.name}' -> {out}", flush=True)
     progress = Progress(totals=job_totals(doc))
@@ -101,7 +101,7 @@ def cell_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--timeout", type=float, default=900.0, help="wall-clock limit per machine (s)")
     args = parser.parse_args(argv)
-    from .runner import local_dds_env
+    from cnc_planner.runner import local_dds_env
 
     env = local_dds_env()  # one domain for the whole cell: namespaces keep the machines apart
     runs = []
@@ -155,9 +155,9 @@ def analyze_main(argv: list[str] | None = None) -> int:
     parser.add_argument("bag", type=Path)
     parser.add_argument("--out", type=Path, help="write the report here (default: print it)")
     args = parser.parse_args(argv)
-    from cnc_servo_bridge.recording import read_run
+    from cnc_analysis.recording import read_run
 
-    from .report import build_report
+    from cnc_planner.report import build_report
     try:
         report = build_report(read_run(args.bag))
     except (FileNotFoundError, ValueError) as err:

@@ -20,10 +20,10 @@ from cnc_msgs_py.status import Status
 from cnc_msgs_py.units import NS
 from cnc_servo_bridge.drive import warm_up
 
-from .lookahead import JobPlan
-from .segments import plan_segments, segment_count
-from .streaming import Chunk, SetpointStream
-from .timeline import Event
+from cnc_planner.lookahead import JobPlan
+from cnc_planner.segments import plan_segments, segment_count
+from cnc_planner.streaming import Chunk, SetpointStream
+from cnc_planner.motion.timeline import Event
 
 START_MATCH = 1e-6  # m: a plan made from another position than the axes hold is redone
 REST_SPEED = 1e-4  # m/s or rad/s: feedback this slow counts as standing still (a settled

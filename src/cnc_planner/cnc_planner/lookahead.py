@@ -21,8 +21,8 @@ import numpy as np
 
 from cnc_msgs_py.schema import JobError
 
-from .jobs import INTERNAL
-from .timeline import Event, Plan
+from cnc_planner.planning import INTERNAL
+from cnc_planner.motion.timeline import Event, Plan
 
 AHEAD_S = 20.0  # s of machine time planned beyond what has been streamed
 

@@ -22,8 +22,8 @@ from cnc_msgs_py.parameters import Param, declare, value
 from cnc_msgs_py.status import Status, decode_cancel
 from cnc_msgs_py.units import NS
 
-from .executive import Executive, Output, Settings
-from .streaming import Chunk
+from cnc_planner.executive import Executive, Output, Settings
+from cnc_planner.streaming import Chunk
 
 
 TOP_UP_PERIOD = 0.02  # s of wall time between top-ups of the stream that no feedback prompted

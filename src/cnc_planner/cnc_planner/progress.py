@@ -154,26 +154,15 @@ class Progress:
 
 def job_totals(doc: dict) -> dict:
     """Phase counts of a whole job from its document, cheaply ({} when unknown or invalid):
-    {"S1": holes} for drilling, {"pass": passes} for roughing, {"thread_pass": passes} for
-    threads. The planner rejects an invalid job itself; this only labels the progress."""
+    the count its kind shows (cnc_planner.kinds), e.g. {"S1": holes} for drilling. The
+    planner rejects an invalid job itself; this only labels the progress."""
     try:
         from cnc_msgs_py.job import parse_job
 
-        job = parse_job(doc)
-        if job.kind == "drill":
-            return {"S1": len(job.drill.holes)}
-        if job.kind == "thread":
-            t = job.thread
-            cuts = len(t.depths) if t.depths is not None else t.passes
-            return {"thread_pass": (cuts + t.spring_passes) * t.starts}
-        if job.kind == "turn":
-            from .turning import plan_roughing
+        from cnc_planner.kinds import KINDS
 
-            t = job.turn
-            rough = plan_roughing([tuple(p) for p in t.stock], [tuple(p) for p in t.profile], t.depth_of_cut,
-                                  t.clearance, tuple(t.origin), t.finish_allowance, t.finishing_pass,
-                                  t.finish_allowance_z)
-            return {"pass": sum(1 for m in rough.moves if m.cutting)}
+        job = parse_job(doc)
+        count = KINDS[job.kind].progress
+        return {} if count is None else {count.event: count.total(job)}
     except Exception:  # noqa: BLE001 - labels only; the planner reports what is wrong
         return {}
-    return {}

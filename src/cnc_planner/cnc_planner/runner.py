@@ -28,7 +28,7 @@ from std_msgs.msg import String
 from cnc_msgs_py import qos, topics
 from cnc_msgs_py.status import FINAL_STATES
 from cnc_msgs_py.units import NS
-from cnc_servo_bridge.recording import RECORDED, BagWriter
+from cnc_analysis.recording import RECORDED, BagWriter
 
 QOS = {
     "job_goal": qos.JOB_GOAL, "job_cancel": qos.JOB_CANCEL, "job_status": qos.JOB_STATUS,

@@ -13,9 +13,9 @@ import numpy as np
 from cnc_msgs_py.machine import Machine
 from cnc_msgs_py.units import NS
 
-from .motion import axis_limits, velocity_change
-from .lookahead import JobPlan
-from .timeline import JointTimeline, Piece, Plan
+from cnc_planner.motion.moves import axis_limits, velocity_change
+from cnc_planner.lookahead import JobPlan
+from cnc_planner.motion.timeline import JointTimeline, Piece, Plan
 
 
 @dataclass

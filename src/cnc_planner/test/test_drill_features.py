@@ -10,10 +10,10 @@ import pytest
 from cnc_msgs_py.job import parse_job
 from cnc_msgs_py.machine import SPINDLE, load_machine
 from cnc_msgs_py.schema import JobError
-from cnc_planner.jobs import plan_job
-from cnc_planner.report import simulated_feedback
-from cnc_servo_bridge.aircut import analyze_aircut
-from cnc_servo_bridge.drill_analysis import analyze_drilling
+from cnc_planner.planning import plan_job
+from cnc_planner.prediction import simulated_feedback
+from cnc_analysis.aircut import analyze_aircut
+from cnc_analysis.drilling import analyze_drilling
 
 MACHINE = load_machine("mill3")
 START = {"x": 0.0, "y": 0.0, "z": 0.05}
@@ -126,7 +126,7 @@ def test_straight_stroke_e_r_waveform_only_touches_until_the_retreat_passes_b1()
     retraces revolution n after B1 with zero clearance (no air-cut); with jerk-limited
     reversals the touch threshold is still exactly that Q, and er_vibration's retreat past
     B1 (ER_DEPARTURE feeds) cuts air in every vibration."""
-    from cnc_planner.vibration import ER_DEPARTURE, _min_q, equal_speed_q, er_vibration
+    from cnc_planner.vibration.waveform import ER_DEPARTURE, _min_q, equal_speed_q, er_vibration
 
     q = equal_speed_q(2.0, 0.5)
     assert q == pytest.approx(1.5)  # v = E*F/(E-2R) = 2F/rev; A1 = 1.5 revs * 2F = 3F = 1.5F + 1.5 F
@@ -150,7 +150,7 @@ def test_shortest_order_is_a_good_tour():
     """Nearest neighbour + 2-opt against every order of 7 random holes: within 5 % of the best."""
     import itertools
 
-    from cnc_planner.hole_order import shortest_order, tour_length
+    from cnc_planner.kinds.drill.hole_order import shortest_order, tour_length
 
     rng = np.random.default_rng(7)
     for _ in range(4):
@@ -162,7 +162,7 @@ def test_shortest_order_is_a_good_tour():
 
 
 def test_segment_over_a_clamp_hand_checked():
-    from cnc_planner.clamps import crossed, under_tool
+    from cnc_planner.kinds.drill.clamps import crossed, under_tool
 
     clamp = [[0.010, -0.010, 0.020, 0.010, 0.012]]  # 10 mm wide bar across y = 0
     assert crossed(clamp, [(0.0, 0.0), (0.030, 0.0)], 0.0) == [0]  # straight over it
@@ -173,7 +173,7 @@ def test_segment_over_a_clamp_hand_checked():
 
 
 def test_peck_levels_and_reentry_above_the_previous_bottom():
-    from cnc_planner.peck import REENTRY_GAP, levels
+    from cnc_planner.kinds.drill.peck import REENTRY_GAP, levels
 
     assert levels(0.0, -0.009, 0.003) == pytest.approx([-0.003, -0.006, -0.009])
     assert levels(0.0, -0.010, 0.003) == pytest.approx([-0.003, -0.006, -0.009, -0.010])

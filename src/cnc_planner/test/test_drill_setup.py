@@ -9,7 +9,7 @@ from cnc_msgs_py.job import parse_job
 from cnc_msgs_py.machine import load_machine
 from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.units import mm
-from cnc_planner.jobs import plan_job
+from cnc_planner.planning import plan_job
 from cnc_planner.kinematics import Kinematics, load_work_offsets, rotation
 from cnc_servo_bridge.drive import DriveModel
 
@@ -129,8 +129,9 @@ def test_tilted_work_offset_on_5ax():
 
 
 def test_report_analyses_tilted_holes_in_program_coordinates():
-    from cnc_planner.report import drill_section, simulated_feedback
-    from cnc_servo_bridge.recording import Run
+    from cnc_planner.kinds.drill.report import drill_section
+    from cnc_planner.prediction import simulated_feedback
+    from cnc_analysis.recording import Run
 
     machine = load_machine("5ax_head_table")
     job = drill_job("5ax_head_table", {"origin": [0.0, 0.0, 20.0], "rotation_deg": [0.0, 30.0, 0.0]})

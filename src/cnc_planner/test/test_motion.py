@@ -15,10 +15,10 @@ import pytest
 
 from cnc_msgs_py.job import parse_job
 from cnc_msgs_py.machine import SPINDLE, load_machine
-from cnc_planner.builder import PlanBuilder
-from cnc_planner.jobs import plan_job
-from cnc_planner.motion import LinearMove, Limits, MotionError, path_limits, point_to_point, velocity_change
-from cnc_planner.timeline import JointTimeline, Piece
+from cnc_planner.motion.builder import PlanBuilder
+from cnc_planner.planning import plan_job
+from cnc_planner.motion.moves import LinearMove, Limits, MotionError, path_limits, point_to_point, velocity_change
+from cnc_planner.motion.timeline import JointTimeline, Piece
 
 MILL = load_machine("mill3")
 LATHE = load_machine("lathe")
@@ -435,8 +435,8 @@ def test_velocity_change_stops_from_motion():
 def test_a_plan_sample_evaluates_each_move_once_and_keeps_no_samples(monkeypatch):
     """Every joint of a three-axis rapid asks its one ruckig move for the same instants:
     it is evaluated once per plan sample, and nothing sampled stays with the plan."""
-    from cnc_planner import motion
-    from cnc_servo_bridge.jerk_profile import TrajectorySampler
+    from cnc_planner.motion import moves as motion
+    from cnc_planner.motion.jerk_profile import TrajectorySampler
 
     calls = []
     evaluate = TrajectorySampler.sample

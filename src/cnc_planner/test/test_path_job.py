@@ -12,10 +12,10 @@ from cnc_msgs_py.job import load_job_file, parse_job
 from cnc_msgs_py.machine import load_machine
 from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.units import mm
-from cnc_planner.jobs import plan_job
+from cnc_planner.planning import plan_job
 from cnc_planner.kinematics import Kinematics, KinematicsError
-from cnc_planner.path_report import _segment_distances, distance_to_polyline, path_figures, tip_deviations
-from cnc_planner.report import simulated_feedback
+from cnc_planner.kinds.path.report import _segment_distances, distance_to_polyline, path_figures, tip_deviations
+from cnc_planner.prediction import simulated_feedback
 
 JOBS = Path(__file__).resolve().parents[3] / "config" / "jobs"
 PERIOD = 1e-3  # the bridge's servo period and the planner's interpolation period

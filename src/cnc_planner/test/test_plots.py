@@ -13,10 +13,11 @@ from matplotlib.image import imread
 
 from cnc_msgs_py.job import parse_job
 from cnc_msgs_py.machine import load_machine
-from cnc_planner.jobs import plan_job
+from cnc_planner.planning import plan_job
 from cnc_planner.plots import write_plots
-from cnc_planner.report import build_report, simulated_feedback
-from cnc_servo_bridge.recording import Run
+from cnc_planner.report import build_report
+from cnc_planner.prediction import simulated_feedback
+from cnc_analysis.recording import Run
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 T0 = 2.0  # s of ROS time at which the synthetic job starts

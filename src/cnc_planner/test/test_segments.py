@@ -13,13 +13,16 @@ from cnc_msgs_py.job import load_job_file, parse_job
 from cnc_msgs_py.machine import SPINDLE, load_machine
 from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.units import NS, mm
-from cnc_planner.jobs import drill_cycle, plan_job
+from cnc_planner.planning import plan_job
+from cnc_planner.kinds.drill.block import drill_cycle
 from cnc_planner.kinematics import Kinematics
 from cnc_planner.lookahead import JobPlan
-from cnc_planner.segments import SEGMENT_HOLES, SEGMENT_MOVES, plan_segments, segment_count
+from cnc_planner.segments import plan_segments, segment_count
+from cnc_planner.kinds.drill import SEGMENT_HOLES
+from cnc_planner.kinds.move import SEGMENT_MOVES
 from cnc_planner.streaming import SetpointStream
-from cnc_planner.timeline import Plan
-from cnc_servo_bridge.drill_analysis import analyze_drilling
+from cnc_planner.motion.timeline import Plan
+from cnc_analysis.drilling import analyze_drilling
 from cnc_servo_bridge.drive import DriveModel
 
 JOBS = Path(__file__).resolve().parents[3] / "config" / "jobs"

@@ -19,9 +19,9 @@ from cnc_msgs_py.machine import SPINDLE, load_machine
 from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.status import Status
 from cnc_msgs_py.units import NS
-from cnc_planner.builder import PlanBuilder
+from cnc_planner.motion.builder import PlanBuilder
 from cnc_planner.executive import Executive, Settings
-from cnc_planner.segments import SEGMENT_HOLES
+from cnc_planner.kinds.drill import SEGMENT_HOLES
 from cnc_planner.streaming import SetpointStream
 from cnc_servo_bridge.setpoints import SetpointBuffer
 

@@ -16,13 +16,13 @@ from cnc_msgs_py.job import load_job_file, parse_job
 from cnc_msgs_py.machine import load_machine
 from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.units import mm
-from cnc_planner.builder import PlanBuilder
-from cnc_planner.jobs import plan_job
-from cnc_planner.thread_cutting import (
+from cnc_planner.motion.builder import PlanBuilder
+from cnc_planner.planning import plan_job
+from cnc_planner.kinds.thread.cutting import (
     ThreadError, ThreadSpec, ThreadVibration, check_thread, pass_depths, plan_thread,
 )
 from cnc_servo_bridge.drive import DriveModel
-from cnc_servo_bridge.thread_analysis import analyze_thread
+from cnc_analysis.threads import analyze_thread
 
 T = 1e-3
 LATHE = load_machine("lathe")

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from cnc_msgs_py.units import mm
-from cnc_planner.turning import (
+from cnc_planner.kinds.turn.roughing import (
     RoughingPlan,
     StockModel,
     TurningError,
@@ -20,7 +20,7 @@ from cnc_planner.turning import (
     plan_naive,
     plan_roughing,
 )
-from cnc_planner.turning_examples import EXAMPLES, roughing_args
+from cnc_planner.kinds.turn.examples import EXAMPLES, roughing_args
 
 NAMES = list(EXAMPLES)
 SAMPLE_STEP = mm(0.01)  # tool tip samples along the path for the gouge check

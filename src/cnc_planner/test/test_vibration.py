@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from cnc_msgs_py.machine import load_machine
-from cnc_planner.vibration import Vibration, VibrationError, VibrationFeed, check_vibration
-from cnc_servo_bridge.aircut import analyze_aircut
+from cnc_planner.vibration.waveform import Vibration, VibrationError, VibrationFeed, check_vibration
+from cnc_analysis.aircut import analyze_aircut
 from cnc_servo_bridge.drive import DriveModel
 
 F = 1e-4

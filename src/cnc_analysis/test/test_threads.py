@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from cnc_servo_bridge.thread_analysis import POINTS_PER_REV, analyze_thread
+from cnc_analysis.threads import POINTS_PER_REV, analyze_thread
 
 T = 1e-3
 OMEGA = 20 * math.pi  # 600 rpm

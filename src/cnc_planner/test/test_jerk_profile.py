@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from ruckig import ControlInterface, InputParameter, Result, Ruckig, Synchronization, Trajectory
 
-from cnc_servo_bridge.jerk_profile import TrajectorySampler
+from cnc_planner.motion.jerk_profile import TrajectorySampler
 
 
 def random_trajectories(count: int, seed: int):

@@ -32,6 +32,8 @@ from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 from cnc_msgs_py.machine import Axis
 from cnc_msgs_py.units import to_mm
 
+from cnc_planner.motion.compensation import COMPENSATION_TAIL, INVERSE_BAND, compensation_band, learned_command
+
 if TYPE_CHECKING:
     from cnc_servo_bridge.drive import DriveModel
 
@@ -39,11 +41,6 @@ TWO_PI = 2.0 * math.pi
 PHASE_SAMPLES = 4096  # points per vibration cycle when scanning the waveform
 MAX_EARLIER_REVS = 64  # revolutions looked back for the surface a return can re-enter
 LEAD_PERIODS = 8  # rest before the ramp: room for a compensated command to lead the drive
-COMPENSATION_TAIL = 0.25  # s: longest the compensated command may settle after the motion
-COMPENSATION_PASSES = 3  # simulate-and-correct passes; the first already lands within counts
-INVERSE_BAND = (0.15, 0.35)  # share of the servo rate: full inverse below, faded out up to
-QUANTISATION_SHARE = 0.05  # of the acceleration limit that chasing encoder counts may cost
-SETTLED = 1.0e-9  # m: command correction below this counts as settled
 # E and R without Q: the method's straight strokes (equal_speed_q), each reversal this share
 # of a vibration long (jerk-limited; 0.16 rev at E 2), and the retreat running ER_DEPARTURE
 # feeds per rev past B1: the smallest departure (0.01 steps) that air-cuts in every
@@ -459,8 +456,8 @@ class VibrationFeed:
         n = math.ceil((self._t_end + COMPENSATION_TAIL) / self._period) + 1
         t = np.arange(n) * self._period
         s, v, a = self._ideal(t)
-        best = learn_correction(drive, s[:, None], v[:, None], a[:, None], self._lead_periods // 2, self._band)
-        self._correction = settled(best, round(self._duration / self._period), self._period)[:, :, 0]
+        self._correction = learned_command(drive, s[:, None], v[:, None], a[:, None], self._lead_periods // 2,
+                                           round(self._duration / self._period), self._period, self._band)[:, :, 0]
         self._duration = (self._correction.shape[1] - 1) * self._period
 
     def sample(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -476,93 +473,3 @@ class VibrationFeed:
         return s, v, a
 
 
-def compensation_band(drive: DriveModel, max_acceleration: float) -> tuple[float, float]:
-    """The band (shares of the servo rate) a correction may use on this drive's encoder:
-    INVERSE_BAND, narrowed on a coarse encoder so that chasing its counts (a count at
-    frequency f costs resolution * (2 pi f)^2 of acceleration) stays within
-    QUANTISATION_SHARE of the acceleration limit."""
-    resolution = float(np.max(drive.resolution))
-    f_max = math.sqrt(QUANTISATION_SHARE * max_acceleration / resolution) / TWO_PI * drive.period
-    hi = min(INVERSE_BAND[1], f_max)
-    return hi * INVERSE_BAND[0] / INVERSE_BAND[1], hi
-
-
-def learn_correction(
-    drive: DriveModel, p: np.ndarray, v: np.ndarray, a: np.ndarray, fixed: int,
-    band: tuple[float, float] = INVERSE_BAND, weight: np.ndarray | None = None,
-) -> np.ndarray:
-    """Command correction (n, joints) that makes the drive's simulated feedback follow the
-    reference p (with its derivatives v, a), sampled every servo period, at rest at both ends.
-
-    A few iterative-learning passes against DriveModel.simulate with the exact inverse of
-    the drive's linear part as learning operator (see VibrationFeed); the first `fixed`
-    samples stay uncorrected, so the command starts at rest where the reference does;
-    `band` (shares of the servo rate) is where the inverse fades out: nothing above it is
-    corrected, encoder quantisation included. ``weight`` (n,), from 0 to 1, fades the
-    correction in where the command must join a piece before it (a drill's final stroke
-    starts at feed, where the drive already lags). Returns the best correction seen.
-    """
-    n = p.shape[0]
-    # zero padding: no wrap-around
-    inverse = np.stack([_inverse_response(drive, 2 * n, j, band) for j in range(p.shape[1])], axis=1)
-    correction = np.zeros_like(p)
-    best, best_error = correction, math.inf
-    for _ in range(COMPENSATION_PASSES):
-        dv, da = _derivatives(correction, drive.period)
-        feedback = drive.simulate(p + correction, v + dv, a + da)[0]
-        error = p - feedback
-        judged = error if weight is None else error[weight >= weight.max()]  # where it acts in full
-        if np.max(np.abs(judged)) < best_error:
-            best, best_error = correction, np.max(np.abs(judged))
-        step = np.fft.irfft(np.fft.rfft(error, 2 * n, axis=0) * inverse, 2 * n, axis=0)[:n]
-        correction = correction + step
-        correction[:fixed] = 0.0  # starts at rest; leads by the rest left before the motion
-        if weight is not None:
-            correction *= weight[:, None]
-    return best
-
-
-def settled(
-    correction: np.ndarray, motion_end: int, period: float, tolerance: float = SETTLED
-) -> np.ndarray:
-    """The correction (n, joints) up to where it has settled below `tolerance` (m), but not
-    before sample `motion_end`, ending at exactly zero; with its derivatives:
-    (3, kept, joints). The command lasts (kept - 1) servo periods."""
-    unsettled = np.flatnonzero(np.any(np.abs(correction) > tolerance, axis=1))
-    last = max(motion_end, unsettled[-1] + 1 if unsettled.size else 0)
-    kept = correction[: last + 1].copy()
-    kept[-1] = 0.0
-    return np.stack([kept, *_derivatives(kept, period)])
-
-
-def _derivatives(x: np.ndarray, period: float) -> tuple[np.ndarray, np.ndarray]:
-    """Central first and second differences (along axis 0) of a sequence at rest at both ends."""
-    padded = np.concatenate((x[:1], x, x[-1:]))
-    return (padded[2:] - padded[:-2]) / (2 * period), (padded[2:] - 2 * x + padded[:-2]) / period**2
-
-
-def _inverse_response(
-    drive: DriveModel, n: int, joint: int = 0, band: tuple[float, float] = INVERSE_BAND
-) -> np.ndarray:
-    """Frequency response (np.fft.rfft bins of an n-sample sequence) from a feedback error
-    to the command correction that removes it, for one joint's linear drive part.
-
-    Per servo period the drive computes v_cmd = ff*v_ref + af*lag*a_ref + kp*(p_ref - y) from
-    the encoder reading y taken before the step, lags it by exp(-T/lag) and integrates the
-    velocity with the trapezoidal rule; our correction reaches it as p_ref with its central
-    differences as v_ref and a_ref. Hence y = G*(K*p_ref - kp*y) with
-    G = (1-decay)*T*(1+z) / (2*(z-decay)*(z-1)) and K = ff*D1 + af*lag*D2 + kp, and the
-    inverse is (1/G + kp)/K. G vanishes at half the servo rate (trapezoidal rule), so the
-    inverse is faded out over `band`; the vibration lives far below it.
-    """
-    kp, ff, af, lag, decay = (float(np.ravel(x)[joint]) for x in (
-        drive.kp, drive.velocity_ff, drive.accel_ff, drive.lag, drive.decay))
-    period = drive.period
-    f = np.fft.rfftfreq(n)  # cycles per servo period
-    z = np.exp(2j * math.pi * f)
-    lo, hi = band
-    fade = np.sin(0.5 * math.pi * np.clip((hi - f) / (hi - lo), 0.0, 1.0)) ** 2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv_g = 2 * (z - decay) * (z - 1) / ((1 - decay) * period * (1 + z))
-        k = ff * (z - 1 / z) / (2 * period) + af * lag * (z - 2 + 1 / z) / period**2 + kp
-        return np.where(fade > 0, (inv_g + kp) / k * fade, 0.0)

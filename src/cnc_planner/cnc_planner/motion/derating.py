@@ -23,8 +23,8 @@ from typing import Callable
 from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_msgs_py.schema import JobError
 
-from .plan_check import check_plan
-from .timeline import Plan
+from cnc_planner.motion.plan_check import check_plan
+from cnc_planner.motion.timeline import Plan
 
 
 @dataclass(frozen=True)

@@ -36,7 +36,7 @@ time. Between passes the tool does not stop (ThreadCycle): it pulls out past end
 the relief groove on a retreating stroke, returns in the air and lands on the next
 pass's running helix before the face z=0 at the servo instant the spindle phase allows.
 The whole cycle's x/z command is pre-compensated with the drive model
-(vibration.learn_correction) so the bridge's feedback, not only the command, holds lead,
+(motion.compensation) so the bridge's feedback, not only the command, holds lead,
 depth and flank offset.
 """
 from __future__ import annotations
@@ -52,16 +52,17 @@ from ruckig import InputParameter, Ruckig, RuckigError, Trajectory
 from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_msgs_py.units import deg, to_mm
 from cnc_servo_bridge.drive import DriveModel
-from cnc_servo_bridge.jerk_profile import TrajectorySampler
+from cnc_planner.motion.jerk_profile import TrajectorySampler
 from cnc_servo_bridge.stop import velocity_trajectory
-from cnc_servo_bridge.thread_analysis import (
+from cnc_analysis.threads import (
     CHIP_LIMIT_REVS, CUT_TOLERANCE, cuts_against_envelope, longest_runs,
 )
 
-from .builder import PlanBuilder
-from .motion import MotionError, axis_limits, calculate
-from .timeline import Piece
-from .vibration import COMPENSATION_TAIL, learn_correction, settled, waveform
+from cnc_planner.motion.builder import PlanBuilder
+from cnc_planner.motion.moves import MotionError, axis_limits, calculate
+from cnc_planner.motion.timeline import Piece
+from cnc_planner.motion.compensation import COMPENSATION_TAIL, learned_command
+from cnc_planner.vibration.waveform import waveform
 
 TWO_PI = 2.0 * math.pi
 JOINTS = ("x", "z")
@@ -578,7 +579,7 @@ class ThreadCycle:
     Which helix revolution a pass joins is the earliest whose join lies before the face by
     JOIN_ROOM_REVS and that the axes can reach with the tool never inside the stock over
     the thread. With a drive model the whole cycle is compensated at once
-    (vibration.learn_correction): the command's lead-in of each pass runs while the tool is
+    (motion.compensation): the command's lead-in of each pass runs while the tool is
     still in the air, and only the cycle's start needs LEAD_TIME at rest.
     """
 
@@ -721,11 +722,12 @@ class ThreadCycle:
     def _compensate(self, drive: DriveModel) -> None:
         n = math.ceil((self.duration + COMPENSATION_TAIL) / self.period) + 1
         p, v, a = self.ideal(np.arange(n) * self.period)
-        best = learn_correction(drive, p, v, a, round(LEAD_TIME / self.period) // 2, COMPENSATION_BAND)
         # settled within a fraction of an encoder count: below that it is quantisation the
         # learning picked up from the simulated encoder, not lag
         tolerance = SETTLED_COUNTS * float(np.min(drive.resolution))
-        self._correction = settled(best, round(self.duration / self.period), self.period, tolerance)
+        self._correction = learned_command(drive, p, v, a, round(LEAD_TIME / self.period) // 2,
+                                           round(self.duration / self.period), self.period, COMPENSATION_BAND,
+                                           tolerance)
         self.duration = (self._correction.shape[1] - 1) * self.period
 
     def sample_all(self, t: np.ndarray) -> np.ndarray:

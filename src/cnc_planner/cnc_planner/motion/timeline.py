@@ -14,7 +14,7 @@ from typing import Callable
 
 import numpy as np
 
-from .motion import shared_samples
+from cnc_planner.motion.moves import shared_samples
 
 # Local time (s, from the piece's start) -> position, velocity, acceleration arrays.
 Sampler = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]

@@ -16,7 +16,7 @@ import numpy as np
 from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
 from cnc_msgs_py.machine import Axis
-from cnc_servo_bridge.jerk_profile import TrajectorySampler
+from cnc_planner.motion.jerk_profile import TrajectorySampler
 from cnc_servo_bridge.stop import velocity_trajectory
 
 # Avoid zero-length divisions and ruckig's numerical floor on tiny moves.

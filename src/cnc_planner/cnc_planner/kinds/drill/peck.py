@@ -10,9 +10,10 @@ X/Y stands still until the final retract has brought the tip above the cycle's X
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import SimpleNamespace
 from typing import Callable
 
-from .motion import RuckigMove
+from cnc_planner.motion.moves import RuckigMove
 
 BREAK_RETRACT = 0.5e-3  # m: a chip-break retract (G73) backs off this far from the bottom
 REENTRY_GAP = 0.2e-3  # m above the previous bottom: the fast re-entry hands over to the feed here
@@ -84,3 +85,13 @@ def peck_moves(z_move: ZMove, peck: Peck, feed: float, top: float, v0: float,
         moves.append(PeckMove("feed", z_move(*state, end, 0.0, feed), k, level))
         previous = level
     return moves
+
+
+def peck_of(d: SimpleNamespace) -> Peck | None:
+    return None if d.peck is None else Peck(d.peck.depth, d.peck.retract == "full", d.peck.full_every)
+
+
+def xy_plane(d: SimpleNamespace, planes: list | tuple) -> float:
+    """The highest R, and just above it when pecks retract fully to R (peck.PLANE_GAP)."""
+    r_z = max(r for _, r, _ in planes)
+    return r_z + PLANE_GAP if d.peck is not None and (d.peck.retract == "full" or d.peck.full_every) else r_z

@@ -26,7 +26,7 @@ commands themselves safe, so the cycle loses only what the feedback demands.
 X/Y pre-compensation (compensate_xy, on by default): with kp = 50/s and no acceleration
 feed-forward the X/Y feedback settles within the tolerance only 30-50 ms after a rapid's
 command ends, and Z has to wait for it. Each S1 command is therefore the ruckig move plus
-a correction learned against the drive model (vibration.learn_correction: the exact
+a correction learned against the drive model (motion.compensation: the exact
 inverse of the drive's linear part, refined against DriveModel.simulate), so that the
 FEEDBACK follows the ruckig move and is in position when the move ends. The command
 leads the move by XY_COMMAND_LEAD servo periods (from rest) and keeps settling
@@ -65,6 +65,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
 from dataclasses import dataclass, replace
 from functools import lru_cache
 from typing import Callable
@@ -76,13 +77,13 @@ from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_msgs_py.schema import JobError
 from cnc_servo_bridge.drive import DriveModel
 
-from .builder import PlanBuilder
-from .motion import Limits, RuckigMove, axis_limits, calculate, point_to_point
-from .peck import Peck, peck_moves
-from .plan_check import BLOCK_S
-from .timeline import Piece, Plan
-from .vibration import (COMPENSATION_TAIL, Vibration, VibrationFeed, compensation_band, learn_correction,
-                        settled)
+from cnc_planner.motion.builder import PlanBuilder
+from cnc_planner.motion.moves import Limits, RuckigMove, axis_limits, calculate, point_to_point
+from cnc_planner.kinds.drill.peck import Peck, peck_moves
+from cnc_planner.motion.plan_check import BLOCK_S
+from cnc_planner.motion.timeline import Piece, Plan
+from cnc_planner.motion.compensation import COMPENSATION_TAIL, compensation_band, learned_command
+from cnc_planner.vibration.waveform import Vibration, VibrationFeed
 
 # Conventional cycle: X/Y travel at R + 1 mm (G99 returns to R; the 1 mm keeps the tip
 # above R on feedback too, where Z reads up to ~0.3 mm below its command while braking).
@@ -457,8 +458,8 @@ class _Job:
             for blend in blends:  # a drive far behind needs a longer fade-in within the limits
                 share = np.clip(np.minimum(tau / blend, (tau[-1] - tau) / fade), 0.0, 1.0)
                 weight = np.sin(0.5 * math.pi * share) ** 2
-                correction = learn_correction(drive, p[:, None], v[:, None], a[:, None], 0, band, weight)
-                kept = settled(correction[k0:], len(p) - k0 - 1, period)
+                kept = learned_command(drive, p[:, None], v[:, None], a[:, None], 0, len(p) - k0 - 1, period, band,
+                                       weight=weight, keep_from=k0)
                 command = np.zeros((3, len(p)))
                 command[:, k0:k0 + kept.shape[1]] = kept[:, :, 0]
                 if (np.max(np.abs(v + command[1])) <= self.z.velocity
@@ -786,9 +787,9 @@ def _xy_correction(machine: Machine, period: float, xy: _XYMove) -> tuple[np.nda
     p = p - p[0]
     moving = (t >= 0.0) & (t < xy.duration)
     v, a = v * moving[:, None], a * moving[:, None]
-    correction = learn_correction(drive, p, v, a, XY_FIXED_PERIODS)
     tolerance = XY_SETTLED_COUNTS * float(np.min(drive.resolution))
-    kept = settled(correction[XY_FIXED_PERIODS - 1:], XY_COMMAND_LEAD + steps, period, tolerance)
+    kept = learned_command(drive, p, v, a, XY_FIXED_PERIODS, XY_COMMAND_LEAD + steps, period, tolerance=tolerance,
+                           keep_from=XY_FIXED_PERIODS - 1)
     # The command (motion plus correction) against the limits, by how much it exceeds them.
     k = min(kept.shape[1], n - XY_FIXED_PERIODS + 1)
     limits = [machine.axes[j] for j in xy.joints]
@@ -1223,3 +1224,20 @@ def lower_bound_time(machine: Machine, cycle: DrillCycle,
     below = sum(job._stroke(top, bottom).duration + job.fast_exit(bottom, cycle.r_z).t_r
                 for _, top, bottom in map(cycle.planes, range(job.n)))
     return sum(xy.duration for xy in job.xy) + below
+
+
+def plan_cycle(builder: PlanBuilder, cycle: DrillCycle) -> None:
+    try:
+        plan_drilling(builder, cycle)
+    except JobError:
+        raise  # names its field already
+    except ValueError as err:  # one line: ruckig appends its whole input to its errors
+        first = (str(err).splitlines() or [""])[0]
+        name, sep, reason = first.partition(": ")
+        if sep and re.fullmatch(r"(holes(\[\d+\])?|feed|mode)", name):  # a field of the drill block
+            raise JobError(f"drill.{name}", reason) from err
+        if sep and name.startswith("vibration"):
+            raise JobError(name, reason) from err
+        if sep and name == "length":  # a vibrated stroke too short to ramp onto the waveform
+            raise JobError("drill.depth", reason) from err
+        raise JobError("drill", first) from err

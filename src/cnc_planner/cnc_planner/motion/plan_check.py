@@ -18,7 +18,7 @@ from cnc_msgs_py.units import NS
 from cnc_servo_bridge.drive import DriveModel
 from cnc_servo_bridge.setpoints import SetpointBuffer, SetpointError
 
-from .timeline import Plan
+from cnc_planner.motion.timeline import Plan
 
 BLOCK_S = 30.0  # s of plan sampled at a time: memory stays flat on long segments
 

@@ -5,8 +5,8 @@ import numpy as np
 
 from cnc_msgs_py.machine import SPINDLE, Machine
 
-from .motion import LinearMove, RuckigMove, axis_limits, point_to_point, velocity_change
-from .timeline import Event, JointTimeline, Piece, Plan
+from cnc_planner.motion.moves import LinearMove, RuckigMove, axis_limits, point_to_point, velocity_change
+from cnc_planner.motion.timeline import Event, JointTimeline, Piece, Plan
 
 
 class PlanBuilder:

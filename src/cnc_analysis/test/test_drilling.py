@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from cnc_servo_bridge.drill_analysis import analyze_drilling
+from cnc_analysis.drilling import analyze_drilling
 
 R = 0.002
 TOL = 1e-5

@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from cnc_servo_bridge.aircut import analyze_aircut
+from cnc_analysis.aircut import analyze_aircut
 
 F = 1e-4
 Q = 1.2

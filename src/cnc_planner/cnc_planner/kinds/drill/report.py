@@ -1,0 +1,130 @@
+"""The drill section of report.json: every hole judged on feedback (depth, X/Y still below
+R, retract mode), pecks, clamps, air-cuts per hole, and the cycle against the conventional
+cycle, the other hole order and the lower bound."""
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from cnc_msgs_py.machine import SPINDLE, Machine
+from cnc_msgs_py.units import to_mm
+
+from cnc_analysis.drilling import analyze_drilling, obstacle_clearance
+from cnc_analysis.recording import Run
+
+from cnc_planner import planning
+from cnc_planner.kinematics import Kinematics
+from cnc_planner.kinds.drill.block import drill_cycle
+from cnc_planner.kinds.drill.clamps import OBSTACLE_MARGIN
+from cnc_planner.kinds.drill.drilling import lower_bound_time
+from cnc_planner.kinds.drill.tilted import tilted, tilted_frame
+from cnc_planner.prediction import simulated_feedback
+from cnc_planner.vibration.report import feed_aircut, feeds
+
+
+def drill_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray) -> dict:
+    kin = Kinematics(machine, job.setup, job.tool)
+    start = {j: float(run.feedback[window][0, run.column(j)]) for j in run.joints}
+    cycle = drill_cycle(job, machine, kin, (start["x"], start["y"]))
+    # A tilted setup drills in program coordinates (tool along program Z): analyse there,
+    # from the cycle's start (the first S1): before it the rotaries turn from wherever
+    # the machine stood, where the program's R plane means nothing yet.
+    frame = tilted(kin) and machine.layout != "mill3"
+    if frame:
+        begin = run.feedback_t[window][0]
+        s1 = [e["stamp_ns"] / 1e9 for e in run.events
+              if e.get("name") == "S1" and "stamp_ns" in e and e["stamp_ns"] / 1e9 >= begin - 1e-9]
+        if s1:
+            window = window & (run.feedback_t >= min(s1) - 1e-9)
+    t = run.feedback_t[window]
+    fb = run.feedback[window]
+
+    def xyz(joints, feedback: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if not frame:
+            return tuple(feedback[:, list(joints).index(j)] for j in "xyz")  # type: ignore[return-value]
+        tips, _ = kin.fk_many({j: feedback[:, i] for i, j in enumerate(joints) if j != SPINDLE})
+        return tips[:, 0], tips[:, 1], tips[:, 2]
+
+    surfaces = [cycle.planes(i)[0] for i in range(len(cycle.holes))]
+    result = analyze_drilling(t, *xyz(run.joints, fb), cycle.holes, cycle.r_z, cycle.xy_tolerance, surfaces)
+    modes = {e["hole"]: e["mode"] for e in run.events if e.get("name") == "S1"}
+    for hole in result["holes"]:
+        hole["mode"] = modes.get(hole["index"])
+        hole["job_index"] = cycle.order[hole["index"]] if cycle.order else hole["index"]
+    conventional = SimpleNamespace(**{**vars(job), "drill": SimpleNamespace(**{**vars(job.drill), "overlap": "off"})})
+    conv_plan = planning.plan_job(conventional, machine, start)
+    ct, cfb = simulated_feedback(conv_plan, machine)
+    if frame:
+        keep = ct >= min(e.time for e in conv_plan.events if e.name == "S1") - 1e-9
+        ct, cfb = ct[keep], cfb[keep]
+    conv = analyze_drilling(ct, *xyz(conv_plan.joints, cfb), cycle.holes, cycle.r_z, cycle.xy_tolerance, surfaces)
+    if job.vibration is not None:
+        hole_aircuts(run, result["holes"], surfaces)
+    if job.drill.peck is not None:
+        result["pecks"] = peck_reentries(run, window)
+    if job.drill.obstacles:
+        result["obstacles"] = obstacle_section(job, kin, *xyz(run.joints, fb))
+    result["conventional_cycle_time_s"] = conv["cycle_time_s"]
+    if job.drill.order == "shortest":  # planning the other order costs a plan: only when asked
+        result["order"] = order_section(job, machine, start, result["cycle_time_s"], xyz)
+    if frame:  # from the cycle's start, over the first hole; in the tilted frame's limits
+        result["lower_bound_s"] = lower_bound_time(tilted_frame(job, machine, kin).machine, cycle)
+    else:
+        result["lower_bound_s"] = lower_bound_time(machine, cycle, (start["x"], start["y"]))
+    return result
+
+
+def peck_reentries(run: Run, window: np.ndarray) -> dict:
+    """Pecks on feedback: how close the fast re-entry after each retract came to the
+    previous bottom (must stay above it), and how many retracts went up."""
+    t, z = run.feedback_t[window], run.feedback[window][:, run.column("z")]
+    marks = [e for e in run.events if e.get("name") in ("reentry", "peck")]
+    closest = np.inf
+    count = 0
+    for entry, feed in zip(marks[0::2], marks[1::2]):
+        fast = (t >= entry["stamp_ns"] / 1e9) & (t <= feed["stamp_ns"] / 1e9)
+        if fast.any():
+            closest = min(closest, float(np.min(z[fast]) - entry["previous_bottom"]))
+            count += 1
+    return {"reentries": count, "min_reentry_height_mm": to_mm(closest) if count else None}
+
+
+def obstacle_section(job: SimpleNamespace, kin: Kinematics, x: np.ndarray, y: np.ndarray,
+                     z: np.ndarray) -> list[dict]:
+    """Per obstacle, the tip's lowest height above its top while the tool was over it, on
+    feedback (axis x, y, z in; judged in program coordinates, as the obstacles are given)."""
+    tips, _ = kin.fk_many({"x": x, "y": y, "z": z})
+    px, py, pz = tips[:, 0], tips[:, 1], tips[:, 2]
+    radius = (job.tool.diameter or 0.0) / 2.0
+    lows = obstacle_clearance(px, py, pz, job.drill.obstacles, radius)
+    return [{"index": k, "top_mm": to_mm(o[4]), "min_clearance_mm": None if low is None else to_mm(low),
+             "required_mm": to_mm(OBSTACLE_MARGIN)} for k, (o, low) in enumerate(zip(job.drill.obstacles, lows))]
+
+
+def order_section(job: SimpleNamespace, machine: Machine, start: dict, cycle_time: float, xyz) -> dict:
+    """Cycle time of both hole orders: the short tour drilled (on feedback) and the order
+    given (planned and run through the drive model)."""
+    given = SimpleNamespace(**{**vars(job), "drill": SimpleNamespace(**{**vars(job.drill), "order": "given"})})
+    plan = planning.plan_job(given, machine, start)
+    t, fb = simulated_feedback(plan, machine)
+    cycle = drill_cycle(given, machine, Kinematics(machine, job.setup, job.tool))
+    given_time = analyze_drilling(t, *xyz(plan.joints, fb), cycle.holes, cycle.r_z, cycle.xy_tolerance)["cycle_time_s"]
+    return {"drilled": "shortest", "shortest_cycle_time_s": cycle_time, "given_cycle_time_s": given_time}
+
+
+def hole_aircuts(run: Run, holes: list[dict], surfaces: list[float]) -> None:
+    """Per hole, the air-cut share and the longest chip below the surface, on the commands
+    and on the feedback (the vibrated feed starts at R, in the air)."""
+    rows = {h["index"]: h for h in holes}
+    for start, end in feeds(run):
+        row = rows.get(start.get("hole"))
+        if row is None:
+            continue
+        above = start["start"][0] - surfaces[row["index"]]  # the feed runs down Z from R
+        row["aircut"] = {}
+        for source, times, positions in (("commanded", run.command_t, run.command),
+                                         ("feedback", run.feedback_t, run.feedback)):
+            found = feed_aircut(run, times, positions, start, end, above)
+            row["aircut"][source] = None if found is None else {
+                k: found[k] for k in ("revolutions", "revolutions_with_aircut", "aircut_fraction", "max_chip_revs")}

@@ -1,0 +1,92 @@
+"""What a job kind is to the rest of the planner: the hooks a kind's folder fills in.
+
+The executive, the segmenting, the report, the figures and the progress display look a
+kind up in ``cnc_planner.kinds.KINDS`` and call these; none of them switches on a kind's
+name. Everything but ``name`` and ``plan`` is optional: a kind without a report section
+gets the sections every job gets (cycle time, following error, air-cuts of vibrated feeds).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+
+from cnc_msgs_py.machine import Machine
+
+from cnc_analysis.recording import Run
+
+from cnc_planner.kinematics import Kinematics
+from cnc_planner.motion.builder import PlanBuilder
+
+Job = SimpleNamespace  # a validated job document in SI units (cnc_msgs_py.job.parse_job)
+
+
+@dataclass(frozen=True)
+class Segmenting:
+    """How a long job of this kind is planned in segments (cnc_planner.segments).
+
+    Attributes:
+        size: items (holes, moves) per segment.
+        index: the event field that numbers items over the whole job.
+        count: how many items the job has.
+        part: the job with only its items lo..hi-1.
+        check_whole: checks every item before the first segment (job, machine, kinematics,
+            start position); what it returns is handed to ``prepare`` and ``settle``.
+        prepare: the job as the segments cut it (e.g. holes put in their touring order).
+        settle: called at the end of every segment but the last, so that the next one
+            starts from drives at rest.
+    """
+
+    size: int
+    index: str
+    count: Callable[[Job], int]
+    part: Callable[[Job, int, int], Job]
+    check_whole: Callable[[Job, Machine, Kinematics, dict[str, float]], Any]
+    prepare: Callable[[Job, Any], Job] | None = None
+    settle: Callable[[PlanBuilder, Any, Kinematics], None] | None = None
+
+
+@dataclass(frozen=True)
+class ReportSection:
+    """The kind's section of report.json: ``judge`` reads the recorded feedback in the job's
+    window and returns the section under ``key``."""
+
+    key: str
+    judge: Callable[[Run, Job, Machine, np.ndarray], dict]
+    judges_chips: bool = False  # it judges its own air-cuts (else vibrated feeds get the aircut section)
+
+
+@dataclass(frozen=True)
+class Figures:
+    """The kind's PNG figures of a run, drawn when its report section is present:
+    ``draw`` returns (figure, file name) pairs."""
+
+    draw: Callable[[Run, Job, Machine, np.ndarray, dict], list[tuple[Any, str]]]
+    aircut: Callable[[dict], dict | None] | None = None  # the air-cut summary the aircut figures show
+
+
+@dataclass(frozen=True)
+class ProgressCount:
+    """What a machinist counts while the job runs: the event marking one more item."""
+
+    event: str
+    one: str
+    many: str
+    total: Callable[[Job], int]
+
+
+@dataclass(frozen=True)
+class JobKind:
+    """One machining method: how its jobs are planned, segmented, judged, drawn and counted."""
+
+    name: str
+    plan: Callable[[Job, Machine, PlanBuilder, Kinematics], None]
+    layouts: tuple[str, ...] | None = None  # machine layouts that can run it (None: every layout)
+    segmenting: Segmenting | None = None
+    report: ReportSection | None = None
+    figures: Figures | None = None
+    progress: ProgressCount | None = None
+

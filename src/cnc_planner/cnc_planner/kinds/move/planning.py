@@ -1,0 +1,56 @@
+"""The ``move`` job: a program of rapid, linear (optionally vibrated) and dwell moves in
+absolute program coordinates."""
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+from cnc_msgs_py.machine import Machine
+
+from cnc_planner.kinematics import Kinematics
+from cnc_planner.motion.builder import PlanBuilder
+from cnc_planner.travel import check_travel, program_axes, to_axes
+from cnc_planner.vibration.feed import TWO_PI, feed_move, vibration_of
+
+
+def move_targets(job: SimpleNamespace, machine: Machine, kin: Kinematics,
+                 start: dict[str, float]) -> list[dict[str, float] | None]:
+    """Every move's axis target (None for a dwell), from the machine at ``start``, checked
+    against the travel: a program is checked whole before any of it is planned."""
+    tip = kin.to_program({j: start.get(j, 0.0) for j in machine.linear_axes})
+    targets: list[dict[str, float] | None] = []
+    for i, move in enumerate(job.move):
+        if move.dwell is not None:
+            targets.append(None)
+            continue
+        kind = "rapid" if move.rapid is not None else "linear"
+        target = getattr(move, kind)
+        field = f"move[{i}].{kind}"
+        for key in program_axes(machine, target, field):
+            tip[key] = getattr(target, key)
+        axes = to_axes(kin, tip, field)
+        check_travel(machine, axes, field)
+        targets.append(axes)
+    return targets
+
+
+def plan_move(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin: Kinematics) -> None:
+    """A list of rapid, linear and dwell moves in absolute program coordinates."""
+    targets = move_targets(job, machine, kin, {j: builder.position(j) for j in machine.linear_axes})
+    vibration = vibration_of(job)
+    if job.spindle_rpm > 0:
+        builder.spindle(job.spindle_rpm)
+    for i, (move, axes) in enumerate(zip(job.move, targets)):
+        start = builder.end_time()
+        if axes is None:
+            for joint in machine.linear_axes:
+                builder.timelines[joint].add_hold(start, move.dwell)
+            builder.event(start, "dwell", move=i)
+            continue
+        kind = "rapid" if move.rapid is not None else "linear"
+        builder.event(start if kind == "rapid" else max(start, builder.spindle_ready), kind, move=i)
+        if kind == "rapid":
+            builder.rapid(axes)
+        elif vibration is None:
+            builder.linear(axes, move.feed)
+        else:
+            feed_move(builder, axes, move.feed / (job.spindle_rpm / TWO_PI), vibration, f"move[{i}]")

@@ -1,0 +1,27 @@
+"""Thread cutting with vibration on two or three axes along the groove (method 4); lathes."""
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+from cnc_planner.kinds.kind import Figures, JobKind, ProgressCount, ReportSection
+
+from .figures import draw
+from .planning import plan_thread_job
+from .report import thread_section
+
+
+def thread_passes(job: SimpleNamespace) -> int:
+    """Cutting and spring passes over every start (the progress total)."""
+    t = job.thread
+    cuts = len(t.depths) if t.depths is not None else t.passes
+    return (cuts + t.spring_passes) * t.starts
+
+
+KIND = JobKind(
+    name="thread",
+    plan=plan_thread_job,
+    layouts=("lathe", "lathe_y"),
+    report=ReportSection("thread", thread_section, judges_chips=True),
+    figures=Figures(draw),
+    progress=ProgressCount("thread_pass", "thread pass", "thread passes", total=thread_passes),
+)

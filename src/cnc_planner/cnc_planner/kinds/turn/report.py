@@ -1,0 +1,46 @@
+"""The turn section of report.json: the roughing plan's figures beside a naive one's, and
+how far the tip went into the allowances and the part on feedback."""
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from cnc_msgs_py.machine import Machine
+from cnc_msgs_py.units import to_mm
+
+from cnc_analysis import summary
+from cnc_analysis.recording import Run
+
+from cnc_planner.kinematics import Kinematics
+from cnc_planner.kinds.turn.roughing import max_gouge, plan_naive, plan_roughing
+
+
+def turn_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray) -> dict:
+    t = job.turn
+    args = dict(stock=[tuple(p) for p in t.stock], profile=[tuple(p) for p in t.profile],
+                depth_of_cut=t.depth_of_cut, clearance=t.clearance, origin=tuple(t.origin),
+                finish_allowance=t.finish_allowance, finish_allowance_z=t.finish_allowance_z)
+    ours = plan_roughing(**args, finishing_pass=t.finishing_pass)
+    naive = plan_naive(**args, finishing_pass=t.finishing_pass)
+    kin = Kinematics(machine, job.setup, job.tool)
+
+    def tips(positions: np.ndarray) -> np.ndarray:
+        radius, z = kin.tip_radius_z(positions[:, run.column("x")], positions[:, run.column("z")])
+        return np.stack([z, radius], axis=1)
+
+    tip_zx = tips(run.feedback[window])
+    commanded = tips(run.command[run.command_t >= run.feedback_t[window][0]])
+    return {
+        **ours.to_dict(),
+        "naive_path_mm": to_mm(naive.path_length),
+        "naive_air_feed_mm": to_mm(naive.air_feed_length),
+        "path_feedback_mm": to_mm(float(np.sum(np.linalg.norm(np.diff(tip_zx, axis=0), axis=1)))),
+        # How far the tip went into the finishing allowances (radial and axial) on feedback, into
+        # the final profile itself on feedback (must be 0), and into the allowances in the setpoints.
+        "max_gouge_mm": to_mm(max_gouge(tip_zx, args["profile"], t.finish_allowance, t.finish_allowance_z)),
+        "max_gouge_part_mm": to_mm(max_gouge(tip_zx, args["profile"], 0.0)),
+        "max_gouge_commanded_mm": to_mm(max_gouge(commanded, args["profile"], t.finish_allowance,
+                                                  t.finish_allowance_z)),
+        "cycle_time_s": summary.cycle_time(run, ("x", "z")),
+    }

@@ -36,9 +36,8 @@ def vibration_of(job: SimpleNamespace) -> Vibration | None:
 
 
 def vibration_error(err: VibrationError) -> JobError:
-    """A VibrationError ('vibration.X: reason') as the JobError naming that field."""
-    name, _, reason = str(err).partition(":")
-    return JobError(name, reason.strip())
+    """A VibrationError as the JobError naming the same vibration field."""
+    return JobError(err.field, err.reason)
 
 
 def feed_move(builder: PlanBuilder, target: dict[str, float], feed_per_rev: float,
@@ -74,7 +73,7 @@ def feed_move(builder: PlanBuilder, target: dict[str, float], feed_per_rev: floa
                              start_angle=builder.timelines[SPINDLE].position_at(start),
                              drive_model_factory=lambda: DriveModel(machine, SERVO_PERIOD, (lead,)))
     except VibrationError as err:
-        if not str(err).startswith("vibration"):  # about the move itself (e.g. its length)
+        if not err.field.startswith("vibration"):  # about the move itself (e.g. its length)
             raise JobError(field, str(err)) from err
         raise vibration_error(err) from err
     builder.event(start, "vibration_feed", start=p0.tolist(), direction=direction.tolist(),

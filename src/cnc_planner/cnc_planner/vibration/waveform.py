@@ -52,8 +52,14 @@ ER_DEPARTURE = 0.03
 class VibrationError(ValueError):
     """A vibration setting that cannot break chips, or that the axis cannot follow.
 
-    The message is one line starting with the offending field, as a job rejection needs.
+    ``field`` names the job field (``vibration.Q``, or ``length`` for the feed move itself)
+    and ``reason`` says why; the message is the one line "field: reason" a rejection needs.
     """
+
+    def __init__(self, field: str, reason: str) -> None:
+        super().__init__(f"{field}: {reason}")
+        self.field = field
+        self.reason = reason
 
 
 @dataclass(frozen=True)
@@ -72,23 +78,20 @@ class Vibration:
 
     def __post_init__(self) -> None:
         if (self.D is None) == (self.E is None and self.R is None):
-            raise VibrationError("vibration: give D, or E and R (for D < 1), but not both")
+            raise VibrationError("vibration", "give D, or E and R (for D < 1), but not both")
         _require_positive("vibration.Q", self.Q)
         if self.D is not None:
             _require_positive("vibration.D", self.D)
             return
         for name, value in (("E", self.E), ("R", self.R)):
             if value is None:
-                raise VibrationError(f"vibration.{name}: E and R go together, {name} is missing")
+                raise VibrationError(f"vibration.{name}", f"E and R go together, {name} is missing")
             _require_positive(f"vibration.{name}", value)
         if self.E <= 1.0:
-            raise VibrationError(
-                f"vibration.E: {self.E:g} revolutions per vibration gives D >= 1; give D instead"
-            )
+            raise VibrationError("vibration.E", f"{self.E:g} revolutions per vibration gives D >= 1; give D instead")
         if self.R >= self.E:
             raise VibrationError(
-                f"vibration.R: the retreat ({self.R:g} revs) must be shorter than the "
-                f"vibration (E = {self.E:g} revs)"
+                "vibration.R", f"the retreat ({self.R:g} revs) must be shorter than the vibration (E = {self.E:g} revs)"
             )
 
     def shape(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -125,7 +128,7 @@ def equal_speed_q(E: float, R: float) -> float:
     ``er_vibration`` therefore retreats ER_DEPARTURE past B1.
     """
     if not 0.0 < 2.0 * R < E:
-        raise VibrationError(f"vibration.R: equal forward and backward speed needs 0 < R < E/2 = {E / 2:g}")
+        raise VibrationError("vibration.R", f"equal forward and backward speed needs 0 < R < E/2 = {E / 2:g}")
     return 2.0 * R * (E - R) / (E - 2.0 * R)
 
 
@@ -138,9 +141,9 @@ def er_vibration(E: float, R: float) -> Vibration:
 
 def _require_positive(field: str, value: object) -> None:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise VibrationError(f"{field}: expected a finite number, got {value!r}")
+        raise VibrationError(field, f"expected a finite number, got {value!r}")
     if value <= 0:
-        raise VibrationError(f"{field}: must be > 0, got {value:g}")
+        raise VibrationError(field, f"must be > 0, got {value:g}")
 
 
 def waveform(u: np.ndarray, r: float = 0.5) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -257,13 +260,13 @@ def check_vibration(
     d = vib.vibrations_per_rev
     if abs(d - round(d)) < 1e-9:
         raise VibrationError(
-            f"vibration.D: {d:g} is a whole number of vibrations/rev: every return lands in phase "
+            "vibration.D", f"{d:g} is a whole number of vibrations/rev: every return lands in phase "
             f"with the previous revolution, so there is no air-cut; use e.g. D={round(d) + 0.5:g}"
         )
     q_min = _min_q(vib)
     if not vib.Q > q_min:
         raise VibrationError(
-            f"vibration.Q: {vib.Q:g} gives no air-cut at D={d:g}; "
+            "vibration.Q", f"{vib.Q:g} gives no air-cut at D={d:g}; "
             f"need Q > {math.ceil(q_min * 100 - 1e-6) / 100:.2f}"
         )
     limits = _speed_limits(vib, feed_per_rev, axis)
@@ -272,7 +275,7 @@ def check_vibration(
         order = ("velocity", "acceleration", "jerk").index(name) + 1
         need = limit * (spindle_speed_rad_s / omega_max) ** order
         raise VibrationError(
-            f"{vib._field}: the {axis.name} axis cannot follow {d:g} vibrations/rev at "
+            vib._field, f"the {axis.name} axis cannot follow {d:g} vibrations/rev at "
             f"{_rpm(spindle_speed_rad_s):.0f} rpm (needs {name} {need:.3g} {unit} > {limit:g}); "
             f"max spindle speed {math.floor(_rpm(omega_max)):.0f} rpm"
         )
@@ -404,7 +407,7 @@ class VibrationFeed:
             ramp = _ruckig((0.0, 0.0, 0.0), target, self._axis, minimum_duration=k * self._period)
             if ramp is not None and abs(ramp.duration - k * self._period) < 1e-9:
                 return t, ramp
-        raise VibrationError(f"{self._vib._field}: the axis cannot ramp onto the vibration")
+        raise VibrationError(self._vib._field, "the axis cannot ramp onto the vibration")
 
     def _stop(self) -> tuple[float, Trajectory]:
         """Leave the waveform as late as possible: the last servo instant before the tool
@@ -429,7 +432,7 @@ class VibrationFeed:
                 if stop is not None and stop.position_extrema[0].max <= self._length + 1e-12:
                     return float(t_stop), stop
         raise VibrationError(
-            f"length: a {to_mm(self._length):g} mm feed is too short to ramp onto the vibration "
+            "length", f"a {to_mm(self._length):g} mm feed is too short to ramp onto the vibration "
             f"at D={d:g} and stop (one vibration reaches {to_mm(reach):.3g} mm)"
         )
 

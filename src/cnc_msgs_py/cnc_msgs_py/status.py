@@ -11,7 +11,13 @@ FINAL_STATES = ("rejected", "succeeded", "aborted", "canceled")
 
 @dataclass
 class Status:
-    """One job's state. ``progress`` is 0..1 of plan time; ``cycle_time_s`` once final."""
+    """One job's state. ``progress`` is 0..1 of plan time; ``cycle_time_s`` once final.
+
+    ``detail`` counts the phase marks (job_events names) the job has passed; ``count`` says
+    which of them a machinist counts and how many the whole job has, e.g.
+    {"event": "S1", "one": "hole", "many": "holes", "total": 50} (empty for kinds without),
+    so a display shows "hole 3/50" without knowing the job's kind.
+    """
 
     job_id: str
     state: str
@@ -22,6 +28,7 @@ class Status:
     duration_s: float = 0.0
     cycle_time_s: float | None = None
     detail: dict = field(default_factory=dict)
+    count: dict = field(default_factory=dict)
     stamp_ns: int = 0  # the machine's (bridge's) time when the status was issued
     schema: str = STATUS_SCHEMA
 

@@ -20,6 +20,7 @@ from cnc_msgs_py.status import Status
 from cnc_msgs_py.units import NS
 from cnc_servo_bridge.drive import warm_up
 
+from cnc_planner.kinds import progress_count
 from cnc_planner.lookahead import JobPlan
 from cnc_planner.segments import plan_segments, segment_count
 from cnc_planner.streaming import Chunk, SetpointStream
@@ -61,6 +62,7 @@ class _Job:
     stream: SetpointStream | None = None
     passing: deque[Event] = field(default_factory=deque)  # published, not yet passed by the feedback
     counts: dict[str, int] = field(default_factory=dict)  # events passed, by name
+    count: dict = field(default_factory=dict)  # what a machinist counts (kinds.progress_count)
     phase: str = ""  # the latest event passed
     progress: float = 0.0  # reported so far: never goes back as the duration estimate moves
     next_status_ns: int = 0
@@ -102,7 +104,7 @@ class Executive:
             doc = decode_job(text)
             job = parse_job(doc)
             self._check_new(job.job_id)
-            return _Job(job.job_id, job, self._plan(job, self._expected_start()))
+            return _Job(job.job_id, job, self._plan(job, self._expected_start()), count=progress_count(job))
         except JobError as err:
             return Status(job_id_of(doc), "rejected", reason=str(err))
 
@@ -122,7 +124,7 @@ class Executive:
             return Status(prepared.job_id, "rejected", reason=str(err))
         self.seen_ids.add(prepared.job_id)
         self.queue.append(prepared)
-        return Status(prepared.job_id, "accepted", duration_s=prepared.plan.expected_duration)
+        return Status(prepared.job_id, "accepted", duration_s=prepared.plan.expected_duration, count=prepared.count)
 
     def _check_new(self, job_id: str) -> None:
         if job_id in self.seen_ids:
@@ -272,7 +274,8 @@ class Executive:
         duration = job.plan.expected_duration
         job.progress = max(job.progress, min(1.0, elapsed / max(duration, 1e-9)))
         return Status(job.job_id, "running", progress=job.progress,
-                      phase=job.phase, elapsed_s=elapsed, duration_s=duration, detail=dict(job.counts))
+                      phase=job.phase, elapsed_s=elapsed, duration_s=duration, detail=dict(job.counts),
+                      count=job.count)
 
     def _events_until(self, job: _Job, t_ns: int, out: Output) -> None:
         """Publish the job's events up to ``t_ns`` (none once it is stopping)."""

@@ -6,6 +6,8 @@ and never switches on a kind's name: a new kind is a new folder and a line in KI
 """
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 from cnc_msgs_py.schema import JobError
 
 from cnc_planner.kinds import drill, move, path, thread, turn
@@ -30,3 +32,12 @@ def kind_of(name: str) -> JobKind:
     if kind is None:
         raise JobError("kind", f"'{name}' jobs are not implemented by this planner yet")
     return kind
+
+
+def progress_count(job: SimpleNamespace) -> dict:
+    """What the job's statuses count (cnc_msgs_py.status.Status.count): the event marking
+    one more item, its names and the job's total; {} for a kind that counts nothing."""
+    count = kind_of(job.kind).progress
+    if count is None:
+        return {}
+    return {"event": count.event, "one": count.one, "many": count.many, "total": count.total(job)}

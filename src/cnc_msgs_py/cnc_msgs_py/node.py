@@ -1,6 +1,13 @@
-"""Running a node process: one clean start and shutdown for the planner and the bridge."""
+"""Running a node process: one clean start and shutdown for the planner and the bridge.
+
+A node's executable behaves like a command-line tool first: ``--help`` prints its usage,
+the ROS arguments it takes and its parameters, ``--version`` its package's version, and
+an argument that is neither ROS's nor ours is an error; none of these starts a node.
+"""
 from __future__ import annotations
 
+import argparse
+import os
 import sys
 import traceback
 from typing import Callable
@@ -9,15 +16,49 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
+from rclpy.utilities import remove_ros_args
 
 from .machine import MachineError
+from .parameters import Param
+from .tool import tool_parser
+
+ROS_USAGE = """ROS arguments (after --ros-args, as with `ros2 run`):
+  -r __ns:=/cnc             the machine's namespace (default: none; the tools use /cnc)
+  -p NAME:=VALUE            set a parameter
+  --params-file FILE        parameters from a YAML file (config/<node>.yaml)
+  --log-level LEVEL         debug, info, warn, error or fatal
+DDS: ROS_DOMAIN_ID, ROS_AUTOMATIC_DISCOVERY_RANGE, ROS_DISCOVERY_SERVER as usual."""
 
 
-def run_node(make: Callable[[], Node], name: str, args: list[str] | None = None) -> int:
+def usage(prog: str, description: str, package: str, parameters: dict[str, Param]) -> argparse.ArgumentParser:
+    """The executable's own arguments (--help, --version) and, in its help, ROS's and the parameters."""
+    rows = []
+    for name, param in parameters.items():
+        default = param.default if isinstance(param.default, (bool, int, float, str)) else "unset"
+        unit = f" [{param.unit}]" if param.unit else ""
+        bounds = f", {param.range[0]:g}..{param.range[1]:g}" if param.range else ""
+        rows.append(f"  {name} (default {default}{bounds}){unit}: {param.description}")
+    epilog = ROS_USAGE + "\n\nparameters:\n" + "\n".join(rows)
+    return tool_parser(prog, package, description=description, epilog=epilog,
+                       usage=f"{prog} [-h] [--version] [--ros-args ...]",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+
+
+def run_node(make: Callable[[], Node], name: str, args: list[str] | None = None, *, description: str = "",
+             package: str = "", parameters: dict[str, Param] | None = None) -> int:
     """Create the node and spin it until Ctrl-C or shutdown; a bad parameter (e.g. an
-    unknown machine) is one line on stderr and exit code 2, not a traceback."""
+    unknown machine) is one line on stderr and exit code 2, not a traceback.
+
+    ``--help``, ``--version`` or an unknown argument among ``args`` (sys.argv without the
+    program, if None) is answered by argparse without starting the node.
+    """
+    argv = sys.argv[1:] if args is None else list(args)
+    prog = os.path.basename(sys.argv[0]) if args is None and sys.argv[0] not in ("", "-c") else name
+    if prog == "__main__.py" or prog.endswith(".py"):
+        prog = name
+    usage(prog, description, package or name, parameters or {}).parse_args(remove_ros_args([prog, *argv])[1:])
     # Ctrl-C (SIGINT) becomes KeyboardInterrupt in spin, so the node is destroyed cleanly.
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    rclpy.init(args=[prog, *argv], signal_handler_options=SignalHandlerOptions.NO)
     try:
         node = make()
     except (MachineError, ValueError) as err:

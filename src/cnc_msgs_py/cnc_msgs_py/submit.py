@@ -6,7 +6,6 @@ stderr (exit 2), no traceback. Exit 0 if the job succeeded (or was canceled as a
 """
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import sys
@@ -17,11 +16,12 @@ from . import topics
 from .client import CncClient, CncClientError
 from .job import load_job
 from .schema import JobError
+from .tool import tool_parser
 
 def main(argv: list[str] | None = None) -> int:
     """cnc-submit JOB: send a job to running CNC nodes and wait for its final status."""
-    parser = argparse.ArgumentParser(
-        prog="cnc-submit", description=main.__doc__,
+    parser = tool_parser(
+        "cnc-submit", "cnc_msgs_py", description=main.__doc__,
         epilog="Exit codes: 0 succeeded (or canceled as asked by --cancel-after), 1 rejected, aborted or "
                "canceled, 2 bad job or arguments, 3 no planner or timeout. The final status (cnc_status/1, "
                "JSON) is printed on stdout; progress goes to stderr.")

@@ -4,7 +4,6 @@ Every user-facing failure is one line naming what to fix, with a non-zero exit c
 """
 from __future__ import annotations
 
-import argparse
 import json
 import subprocess
 import sys
@@ -16,6 +15,7 @@ import numpy as np
 from cnc_msgs_py.job import job_id_of, load_job_file, parse_job
 from cnc_msgs_py.machine import MachineError, load_machine
 from cnc_msgs_py.schema import JobError
+from cnc_msgs_py.tool import tool_parser
 from cnc_msgs_py.topics import NAMESPACE
 
 from cnc_planner.planning import plan_job
@@ -40,7 +40,7 @@ def _rejected_report(job_id: str, reason: str) -> dict:
 
 def run_main(argv: list[str] | None = None) -> int:
     """cnc-run JOB [--out DIR]: run a job on the emulated machine and report on it."""
-    parser = argparse.ArgumentParser(prog="cnc-run", description=run_main.__doc__)
+    parser = tool_parser("cnc-run", "cnc_planner", description=run_main.__doc__)
     parser.add_argument("job", help="job document (YAML or JSON)")
     parser.add_argument("--out", type=Path, help="output directory (default runs/<timestamp>)")
     parser.add_argument("--timeout", type=float, default=900.0, help="wall-clock limit (s)")
@@ -96,7 +96,7 @@ def summary(report: dict) -> str:
 def cell_main(argv: list[str] | None = None) -> int:
     """cnc-cell JOB [JOB ...] --out DIR: one machine pair per job, all at once, in one DDS
     domain under /cell/m<i>/cnc, each recorded to DIR/m<i>/ (bag, report, plots)."""
-    parser = argparse.ArgumentParser(prog="cnc-cell", description=cell_main.__doc__)
+    parser = tool_parser("cnc-cell", "cnc_planner", description=cell_main.__doc__)
     parser.add_argument("jobs", nargs="+", help="job documents, one per machine")
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--timeout", type=float, default=900.0, help="wall-clock limit per machine (s)")
@@ -124,7 +124,7 @@ def cell_main(argv: list[str] | None = None) -> int:
 
 def plan_main(argv: list[str] | None = None) -> int:
     """cnc-plan JOB --out DIR: plan offline (no ROS) and write setpoints.npz + summary.json."""
-    parser = argparse.ArgumentParser(prog="cnc-plan", description=plan_main.__doc__)
+    parser = tool_parser("cnc-plan", "cnc_planner", description=plan_main.__doc__)
     parser.add_argument("job")
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--period", type=float, default=0.001, help="interpolation period (s)")
@@ -151,7 +151,7 @@ def plan_main(argv: list[str] | None = None) -> int:
 
 def analyze_main(argv: list[str] | None = None) -> int:
     """cnc-analyze DIR/bag [--out report.json]: recompute the report from a recording alone."""
-    parser = argparse.ArgumentParser(prog="cnc-analyze", description=analyze_main.__doc__)
+    parser = tool_parser("cnc-analyze", "cnc_planner", description=analyze_main.__doc__)
     parser.add_argument("bag", type=Path)
     parser.add_argument("--out", type=Path, help="write the report here (default: print it)")
     args = parser.parse_args(argv)
@@ -171,4 +171,6 @@ def analyze_main(argv: list[str] | None = None) -> int:
 
 if __name__ == "__main__":  # python -m cnc_planner.cli run|plan|analyze|cell ...
     TOOLS = {"run": run_main, "plan": plan_main, "analyze": analyze_main, "cell": cell_main}
+    if len(sys.argv) < 2 or sys.argv[1] not in TOOLS:
+        sys.exit(f"usage: python -m cnc_planner.cli {{{','.join(TOOLS)}}} [--help] ...")
     sys.exit(TOOLS[sys.argv[1]](sys.argv[2:]))

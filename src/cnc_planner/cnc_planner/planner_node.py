@@ -206,7 +206,9 @@ class PlannerNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    return run_node(PlannerNode, "cnc_planner", args)
+    return run_node(PlannerNode, "cnc_planner", args, package="cnc_planner", parameters=PARAMETERS,
+                    description="The CNC planner node: job goals in (job_goal), jerk-limited joint setpoints out "
+                                "(joint_trajectory), statuses and phase marks back (job_status, job_events).")
 
 
 if __name__ == "__main__":

@@ -279,7 +279,9 @@ class BridgeNode(LifecycleNode):
 
 
 def main(args: list[str] | None = None) -> int:
-    return run_node(BridgeNode, "cnc_servo_bridge", args)
+    return run_node(BridgeNode, "cnc_servo_bridge", args, package="cnc_servo_bridge", parameters=PARAMETERS,
+                    description="The servo bridge node (lifecycle): setpoints in (joint_trajectory), a drive model "
+                                "per axis, joint_states, /diagnostics and, in simulation, /clock out.")
 
 
 if __name__ == "__main__":

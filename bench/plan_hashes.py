@@ -74,8 +74,8 @@ def cnc_plan_digest(job_file: Path) -> tuple[str, float, int]:
 def outcome(call, *args) -> tuple[str, float, int]:
     try:
         return plan_digest(call(*args))
-    except (JobError, MachineError) as err:
-        return "rejected:" + hashlib.sha256(str(err).encode()).hexdigest()[:7], 0.0, 0
+    except (JobError, MachineError) as err:  # the checkout's own path (a missing machine's) left out
+        return "rejected:" + hashlib.sha256(str(err).replace(str(ROOT), "<root>").encode()).hexdigest()[:7], 0.0, 0
 
 
 def rows() -> list[tuple[str, str, float, int]]:

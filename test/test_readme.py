@@ -1,6 +1,7 @@
 """Every example in the README and in docs/ runs, so the pages cannot rot: job fragments
-validate and plan inside their example jobs, the machine description parses, and the Python
-snippets run against real nodes and a real recording."""
+validate and plan inside their example jobs, the machine description parses, the Python
+snippets run against real nodes and a real recording, the shell examples name real make
+targets, console scripts and files, and every relative link leads to a file and heading."""
 from __future__ import annotations
 
 import json
@@ -17,7 +18,7 @@ from cnc_msgs_py.machine import load_machine, parse_machine
 from cnc_planner.jobs import plan_job
 from cnc_planner.runner import Session
 
-from support import JOBS, ROOT
+from support import BIN, JOBS, ROOT
 
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 # (page, language, text) of every fenced block, pages in the order above.
@@ -29,6 +30,9 @@ EXAMPLE = {"move": "move_mill3", "drill": "drill_row", "turn": "turn_stepped", "
 YAML = [(page, yaml.safe_load(text)) for page, lang, text in BLOCKS if lang == "yaml"]
 JOB_BLOCKS = [(page, doc) for page, doc in YAML if "axes" not in doc]
 PYTHON = [text for _, lang, text in BLOCKS if lang == "python"]
+SHELL = [text for _, lang, text in BLOCKS if lang == "sh"]
+# Written by the lead beside this change; linked from the README and docs/index.md already.
+NOT_YET_WRITTEN = {ROOT / "docs" / "architecture.md"}
 
 
 @pytest.mark.parametrize("page, fragment", JOB_BLOCKS, ids=lambda x: x.name if isinstance(x, Path) else "+".join(x))
@@ -67,3 +71,38 @@ def test_python_examples_run_against_nodes_and_a_recording(tmp_path):
     script = bag_example.replace('"runs/<stamp>/bag"', repr(str(tmp_path / "bag"))) + "\nprint(msg)\n"
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert result.returncode == 0 and result.stdout.strip(), result.stderr[-2000:]
+
+
+def test_shell_examples_name_real_targets_scripts_and_files():
+    targets = set(re.findall(r"^([\w-]+):", (ROOT / "Makefile").read_text(), re.M))
+    for text in SHELL:
+        for line in text.splitlines():
+            words = line.split("#")[0].split()
+            if words and words[0] == "make":
+                assert words[1] in targets, line
+            if words and words[0].startswith("cnc-"):
+                assert (BIN / words[0]).is_file(), line
+            for word in words:
+                if re.fullmatch(r"(config|bench)/[\w./-]+\.\w+", word):
+                    assert (ROOT / word).is_file(), line
+
+
+def anchors(page: Path) -> set[str]:
+    """GitHub's anchors for a page's headings: lower case, punctuation dropped, spaces to '-'."""
+    text = re.sub(r"```.*?```", "", page.read_text(), flags=re.S)
+    return {re.sub(r"[^\w\- ]", "", title.lower()).replace(" ", "-")
+            for title in re.findall(r"^#+ (.+)$", text, re.M)}
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
+def test_relative_links_lead_to_a_file_and_heading(page):
+    for target in re.findall(r"\]\(([^)\s]+)\)", page.read_text()):
+        if re.match(r"\w+://", target):
+            continue
+        path, _, anchor = target.partition("#")
+        linked = (page.parent / path).resolve() if path else page
+        if linked in NOT_YET_WRITTEN:
+            continue
+        assert linked.exists(), f"{page.name}: {target}"
+        if anchor:
+            assert anchor in anchors(linked), f"{page.name}: {target}"

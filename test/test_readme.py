@@ -4,6 +4,7 @@ snippets run against real nodes and a real recording, the shell examples name re
 targets, console scripts and files, and every relative link leads to a file and heading."""
 from __future__ import annotations
 
+import importlib
 import json
 import re
 import subprocess
@@ -106,3 +107,17 @@ def test_relative_links_lead_to_a_file_and_heading(page):
         assert linked.exists(), f"{page.name}: {target}"
         if anchor:
             assert anchor in anchors(linked), f"{page.name}: {target}"
+
+
+def test_named_source_files_and_objects_exist():
+    """`cnc_pkg/module.py` paths and `cnc_pkg.module.Name` objects the pages name, so a
+    module that moves takes its pages along."""
+    text = "".join(page.read_text() for page in PAGES)
+    for package, rest in re.findall(r"`(cnc_\w+)/([\w/]+\.(?:py|c))`", text):
+        assert (ROOT / "src" / package / package / rest).is_file(), f"{package}/{rest}"
+    for dotted in re.findall(r"`(cnc_\w+(?:\.\w+)+)`", text):
+        obj = importlib.import_module(dotted.split(".")[0])
+        for name in dotted.split(".")[1:]:
+            if not hasattr(obj, name):  # a submodule not imported yet
+                importlib.import_module(f"{obj.__name__}.{name}")
+            obj = getattr(obj, name)

@@ -15,7 +15,7 @@ from cnc_analysis.recording import read_run
 JOBS = 100
 PERIOD_NS = 1_000_000  # the executive's interpolation period
 IN_FLIGHT = 5  # goals submitted but not yet acknowledged ('accepted'): job_goal is
-# reliable with depth 10 (README), so a burst of more goals than that while the planner is
+# reliable with depth 10 (docs/interfaces.md), so a burst of more goals than that while the planner is
 # busy planning loses the oldest ones; a cell controller keeps fewer in flight.
 
 

@@ -44,7 +44,7 @@ LEAD_PERIODS = 8  # rest before the ramp: room for a compensated command to lead
 # E and R without Q: the method's straight strokes (equal_speed_q), each reversal this share
 # of a vibration long (jerk-limited; 0.16 rev at E 2), and the retreat running ER_DEPARTURE
 # feeds per rev past B1: the smallest departure (0.01 steps) that air-cuts in every
-# vibration by >= 1 um on the commands and on feedback for E 2, R 0.5 (README).
+# vibration by >= 1 um on the commands and on feedback for E 2, R 0.5 (docs/drill.md).
 STRAIGHT_CORNER = 0.08
 ER_DEPARTURE = 0.03
 

@@ -23,7 +23,7 @@ setup(
         (f"share/{PACKAGE}/config", config("planner.yaml")),
         (f"share/{PACKAGE}/config/jobs", config("jobs/*.yaml")),
     ],
-    install_requires=["setuptools"],
+    install_requires=["setuptools", "tqdm>=4.66"],
     zip_safe=True,
     maintainer="CNC control team",
     maintainer_email="dev@cnc.local",

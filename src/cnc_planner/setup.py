@@ -17,13 +17,14 @@ setup(
     name=PACKAGE,
     version="0.1.0",
     packages=find_packages(exclude=["test"]),
+    package_data={PACKAGE: ["templates/*.j2"]},  # report.html's template, read by jinja2 from the package
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
         (f"share/{PACKAGE}/config", config("planner.yaml")),
         (f"share/{PACKAGE}/config/jobs", config("jobs/*.yaml")),
     ],
-    install_requires=["setuptools"],
+    install_requires=["setuptools", "tqdm>=4.66", "Jinja2>=3.1"],
     zip_safe=True,
     maintainer="CNC control team",
     maintainer_email="dev@cnc.local",

@@ -3,8 +3,8 @@
 ``Progress`` takes every ``cnc_status/1`` document of a job (as dicts, the way cnc-run's
 progress callback hands them over) and shows it:
 
-- on a terminal, one line redrawn in place with ``\\r``: a bar, percent, holes or passes
-  done (from the status's phase counts), simulated time vs the job's planned time, phase;
+- on a terminal, a tqdm bar redrawn in place: percent, simulated time vs the job's planned
+  time, holes or passes done (from the status's phase counts), phase;
 - otherwise plain lines, at most one per 10 % of progress, or one per 5 s of wall time on
   a job that advances slowly, plus one line for every other state (accepted, final).
 
@@ -14,20 +14,19 @@ thread pass. ``totals`` (the same names, counted on the plan) turns them into ``
 """
 from __future__ import annotations
 
-import shutil
 import sys
 import time
 from typing import Callable, TextIO
 
-# detail key -> what a machinist calls it (singular, plural)
-UNITS = (("S1", "hole", "holes"), ("thread_pass", "thread pass", "thread passes"),
-         ("pass", "pass", "passes"))
+from tqdm import tqdm
+
+UNITS = {"S1": "hole", "thread_pass": "thread pass", "pass": "pass"}  # detail key -> what a machinist calls it
 LINE_STEP = 0.1  # plain lines: at most one per 10 % of progress ...
 LINE_PERIOD_S = 5.0  # ... or one per 5 s (wall) while a slow job advances
-REDRAW_PERIOD_S = 0.1  # terminal: redraw the bar at most this often
-BAR_WIDTH = 30
-MIN_BAR = 10
-PHASE_WIDTH = 11  # room kept for '  ' + the phase (a longer one than 'job_start' is cut at the end)
+REDRAW_PERIOD_S = 0.1  # terminal: tqdm redraws the bar at most this often
+PHASE_WIDTH = 11  # room kept for the phase ('thread_pass'), so that the bar keeps its length
+# tqdm's bar of simulated seconds; the elapsed time is as wide as the total, for the same reason.
+BAR_FORMAT = "  {{desc}} {{percentage:3.0f}}%|{{bar}}| sim {{n:{width}.2f}}/{{total:.2f}} s{{postfix}}"
 
 
 def counts_text(detail: dict | None, totals: dict | None = None) -> str:
@@ -35,7 +34,7 @@ def counts_text(detail: dict | None, totals: dict | None = None) -> str:
     detail = detail or {}
     totals = totals or {}
     parts = []
-    for key, one, _many in UNITS:
+    for key, one in UNITS.items():
         total = totals.get(key)
         done = detail.get(key)
         if done is None and not total:
@@ -43,13 +42,6 @@ def counts_text(detail: dict | None, totals: dict | None = None) -> str:
         done = int(done or 0)
         parts.append(f"{one} {done:{len(str(int(total)))}d}/{int(total)}" if total else f"{one} {done}")
     return "  ".join(parts)
-
-
-def bar(fraction: float, width: int = BAR_WIDTH) -> str:
-    """A bar of ``width`` cells: '[#########...............]'."""
-    fraction = min(1.0, max(0.0, float(fraction)))
-    full = int(round(fraction * width))
-    return "[" + "#" * full + "." * (width - full) + "]"
 
 
 def status_text(status: dict, totals: dict | None = None) -> str:
@@ -61,27 +53,10 @@ def status_text(status: dict, totals: dict | None = None) -> str:
         cycle = status.get("cycle_time_s")
         extra = f", {cycle:.2f} s" if state == "succeeded" and cycle is not None else ""
         return f"  {job_id}: {state}{reason}{extra}"
-    fields = [f"{100 * status.get('progress', 0.0):5.1f}%", _times(status), counts_text(status.get("detail"), totals),
+    times = f"sim {status.get('elapsed_s', 0.0):.2f}/{status.get('duration_s', 0.0):.2f} s"
+    fields = [f"{100 * status.get('progress', 0.0):5.1f}%", times, counts_text(status.get("detail"), totals),
               status.get("phase", "")]
     return f"  {job_id}: " + "  ".join(f for f in fields if f)
-
-
-def bar_text(status: dict, totals: dict | None = None, width: int = 80) -> str:
-    """One running status as the terminal's bar line, within ``width`` - 1 characters:
-    the bar shrinks first, then the phase and the rest are cut."""
-    progress = status.get("progress", 0.0)
-    head = f"  {status.get('job_id', '')} "
-    # Fields of steady width, so that the bar keeps its length from one redraw to the next.
-    tail = "  ".join(f for f in (f" {100 * progress:3.0f}%", counts_text(status.get("detail"), totals),
-                                 _times(status, steady=True)) if f)
-    cells = max(MIN_BAR, min(BAR_WIDTH, width - 1 - len(head) - len(tail) - 2 - PHASE_WIDTH))
-    phase = status.get("phase", "")
-    return (head + bar(progress, cells) + tail + (f"  {phase}" if phase else ""))[: max(10, width - 1)]
-
-
-def _times(status: dict, steady: bool = False) -> str:
-    duration = f"{status.get('duration_s', 0.0):.2f}"
-    return f"sim {status.get('elapsed_s', 0.0):{len(duration) if steady else 0}.2f}/{duration} s"
 
 
 class Progress:
@@ -91,8 +66,8 @@ class Progress:
         stream: where to write (default stdout).
         tty: draw a bar in place; default: whether ``stream`` is a terminal.
         totals: phase counts of the whole plan, e.g. {"S1": 5}, for 'hole 3/5'.
-        clock: wall clock (monotonic seconds), replaceable in tests.
-        width: line width on a terminal; default: the terminal's.
+        clock: wall clock (monotonic seconds) of the plain lines' 5 s period, replaceable in tests.
+        width: line width on a terminal; default: the terminal's, followed as it is resized.
     """
 
     def __init__(self, stream: TextIO | None = None, *, tty: bool | None = None, totals: dict | None = None,
@@ -104,37 +79,44 @@ class Progress:
         self.tty = tty
         self.totals = dict(totals or {})
         self.clock = clock
-        self.width = width or shutil.get_terminal_size((80, 24)).columns
-        self._drawn = 0  # characters of the bar line on screen (terminal), 0 = none
+        self.width = width
+        self._bar: tqdm | None = None  # the job's bar while it is on screen (terminal)
         self._last_time: float | None = None
         self._last_step = -1  # the 10 % step of the last plain line
         self._last_progress = -1.0
 
     def __call__(self, status: dict) -> None:
-        if status.get("state") == "running":
-            self._running(status)
-        else:
+        if status.get("state") != "running":
+            self.close()
             self._line(status_text(status, self.totals))
+        elif self.tty:
+            self._draw(status)
+        else:
+            self._log(status)
 
     def close(self) -> None:
-        """End a bar left on the line (before anything else is printed)."""
-        if self._drawn:
-            self.stream.write("\n")
-            self.stream.flush()
-            self._drawn = 0
+        """End the bar, left on screen with its last figures (before anything else is printed)."""
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
 
-    def _running(self, status: dict) -> None:
+    def _draw(self, status: dict) -> None:
+        duration = float(status.get("duration_s", 0.0))
+        done = float(status.get("progress", 0.0)) * duration  # simulated seconds, as the plan counts them
+        after = ", ".join(f for f in (counts_text(status.get("detail"), self.totals),
+                                      f"{status.get('phase', ''):{PHASE_WIDTH}}") if f.strip())
+        if self._bar is None:
+            self._bar = tqdm(total=duration, initial=done, desc=status.get("job_id", ""), postfix=after,
+                             file=self.stream, ncols=self.width, dynamic_ncols=self.width is None,
+                             mininterval=REDRAW_PERIOD_S, miniters=0,
+                             bar_format=BAR_FORMAT.format(width=len(f"{duration:.2f}")))
+            return
+        self._bar.set_postfix_str(after, refresh=False)
+        self._bar.update(done - self._bar.n)
+
+    def _log(self, status: dict) -> None:
         now = self.clock()
         progress = float(status.get("progress", 0.0))
-        if self.tty:
-            if self._last_time is not None and now - self._last_time < REDRAW_PERIOD_S and progress < 1.0:
-                return
-            text = bar_text(status, self.totals, self.width)
-            self.stream.write("\r" + text + " " * max(0, self._drawn - len(text)))
-            self.stream.flush()
-            self._drawn = len(text)
-            self._last_time = now
-            return
         step = int(progress / LINE_STEP + 1e-9)
         slow = self._last_time is not None and now - self._last_time >= LINE_PERIOD_S and progress > self._last_progress
         if step > self._last_step or slow:
@@ -144,11 +126,7 @@ class Progress:
             self._last_time = now
 
     def _line(self, text: str) -> None:
-        if self._drawn:
-            self.stream.write("\r" + text + " " * max(0, self._drawn - len(text)) + "\n")
-            self._drawn = 0
-        else:
-            self.stream.write(text + "\n")
+        self.stream.write(text + "\n")
         self.stream.flush()
 
 

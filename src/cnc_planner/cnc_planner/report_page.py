@@ -5,19 +5,23 @@ was it safe, did the chips break, is there stock left or a gouge, how long did i
 against the conventional cycle and the lower bound, how well did the axes follow, were
 setpoints lost), the per-hole / per-pass tables, and every plot with a caption. Plots are
 embedded as base64 data URIs and the CSS is inline: no network, no JavaScript, so the file
-can be mailed or opened from a bag archive as it is. Only the standard library is used.
+can be mailed or opened from a bag archive as it is. This module works out what the page
+says; templates/report.html.j2 (jinja2, every value escaped) lays it out.
 """
 from __future__ import annotations
 
 import base64
-import html
 import math
 from pathlib import Path
+
+from jinja2 import Environment, PackageLoader
 
 # Limits the verdicts are judged against (the same ones the integration tests use).
 CHIP_MAX_REVS = 1.0  # a chip longer than one spindle revolution is not broken
 GOUGE_LIMIT_MM = 0.01  # feedback into the finished part beyond this is a gouge
 ROTARY = ("spindle", "a", "b", "c")  # joints in rad on the topics (shown in mrad)
+PAGES = Environment(loader=PackageLoader("cnc_planner"), autoescape=True, trim_blocks=True, lstrip_blocks=True,
+                    keep_trailing_newline=True)
 
 CAPTIONS = {
     "following_error": "Command vs feedback per axis, and the following error (command - feedback) over the job.",
@@ -35,30 +39,6 @@ CAPTIONS = {
                       "its vibration, and each pass's depth along the groove against the pass before it "
                       "(its returns above the previous turning points are where the chip breaks).",
 }
-
-CSS = """
-body{font-family:system-ui,-apple-system,"Segoe UI",Helvetica,Arial,sans-serif;margin:0;background:#f4f5f7;color:#1d2330}
-header{background:#1d2330;color:#fff;padding:18px 28px}
-header h1{margin:0 0 4px;font-size:24px} header p{margin:0;color:#c9cfdb}
-main{padding:18px 28px;max-width:1240px}
-.state{display:inline-block;padding:3px 12px;border-radius:4px;font-weight:700;margin-left:10px;font-size:18px}
-.ok{background:#1f8a4c;color:#fff}.bad{background:#c62828;color:#fff}.warn{background:#e0a100;color:#1d2330}
-.info{background:#5b6b86;color:#fff}
-.cards{display:grid;grid-template-columns:repeat(auto-fill,minmax(280px,1fr));gap:12px;margin:12px 0 22px}
-.card{background:#fff;border-radius:6px;padding:12px 14px;border-left:8px solid #5b6b86;box-shadow:0 1px 2px #0002}
-.card.ok{border-left-color:#1f8a4c}.card.bad{border-left-color:#c62828}.card.warn{border-left-color:#e0a100}
-.card.ok,.card.bad,.card.warn,.card.info{background:#fff;color:#1d2330}
-.card h3{margin:0 0 4px;font-size:13px;text-transform:uppercase;letter-spacing:.05em;color:#5b6b86}
-.card .v{font-size:22px;font-weight:700;margin:2px 0}.card .d{font-size:13px;color:#444}
-table{border-collapse:collapse;background:#fff;margin:6px 0 22px;font-size:13px;box-shadow:0 1px 2px #0002}
-th,td{padding:4px 10px;border-bottom:1px solid #e3e6eb;text-align:right}th{background:#e9ecf1}
-td:first-child,th:first-child{text-align:left}
-figure{background:#fff;margin:0 0 22px;padding:10px;border-radius:6px;box-shadow:0 1px 2px #0002}
-figure img{max-width:100%;height:auto;display:block}
-figcaption{font-size:14px;color:#333;margin-top:6px}
-h2{margin:18px 0 6px;font-size:18px}
-footer{color:#777;font-size:12px;padding:0 28px 20px}
-"""
 
 
 def write_report_page(report: dict, plots: list[Path], out: Path, *, job: dict | None = None) -> Path:
@@ -80,32 +60,13 @@ def render(report: dict, plots: list[Path], *, job: dict | None = None) -> str:
     """The page as a string (see write_report_page)."""
     job = job or {}
     state = report.get("state", "unknown")
-    title = f"CNC run {report.get('job_id', '')}"
     subtitle = " · ".join(str(x) for x in (job.get("kind"), f"machine {job['machine']}" if job.get("machine") else None,
                                            f"{job['spindle_rpm']} rpm" if job.get("spindle_rpm") else None) if x)
-    parts = [
-        "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
-        '<meta name="viewport" content="width=device-width,initial-scale=1">',
-        f"<title>{_e(title)}</title><style>{CSS}</style></head><body>",
-        f'<header><h1>{_e(title)}<span class="state {_state_class(state)}">{_e(state.upper())}</span></h1>',
-        f"<p>{_e(subtitle)}</p></header><main>",
-    ]
-    if report.get("reason"):
-        parts.append(f'<p class="card {_state_class(state)}"><b>Reason:</b> {_e(report["reason"])}</p>')
-    parts.append('<h2>Verdicts</h2><div class="cards">')
-    parts += [_card(*c) for c in verdicts(report)]
-    parts.append("</div>")
-    parts += _tables(report)
-    if plots:
-        parts.append("<h2>Plots</h2>")
-        # The method's own figures first, the following error (every job has it) last.
-        parts += [_figure(p) for p in sorted(map(Path, plots), key=lambda p: p.stem == "following_error")]
-    elif state != "rejected":
-        parts.append("<p>No plots: the recording holds no feedback for this job.</p>")
-    parts.append("</main><footer>Judged on the servo bridge's recorded feedback (sensor_msgs/JointState), "
-                 "lengths in mm, times in s; the figures are those of report.json beside this page.</footer>")
-    parts.append("</body></html>")
-    return "\n".join(parts) + "\n"
+    # The method's own figures first, the following error (every job has it) last.
+    figures = [_figure(p) for p in sorted(map(Path, plots), key=lambda p: p.stem == "following_error")]
+    return PAGES.get_template("report.html.j2").render(
+        title=f"CNC run {report.get('job_id', '')}", state=state, state_class=_state_class(state), subtitle=subtitle,
+        reason=report.get("reason"), cards=verdicts(report), tables=tables(report), figures=figures)
 
 
 def verdicts(report: dict) -> list[tuple[str, str, str, str]]:
@@ -200,47 +161,35 @@ def _following_card(errors: dict) -> tuple[str, str, str, str]:
     return "Following error (max)", f"{worst:.3f} mm", detail, "info"
 
 
-def _tables(report: dict) -> list[str]:
-    parts = []
+def tables(report: dict) -> list[tuple[str, list[str], list[list]]]:
+    """(heading, column names, rows) per table of the page: following error, holes, thread passes."""
+    out = []
     errors = report.get("max_following_error") or {}
     if errors:
         rows = [[k, f"{v * 1e3:.4f}", "mrad" if k in ROTARY else "mm"] for k, v in errors.items()]
-        parts.append("<h2>Following error per axis</h2>" + _table(["axis", "max |command - feedback|", "unit"], rows))
+        out.append(("Following error per axis", ["axis", "max |command - feedback|", "unit"], rows))
     holes = (report.get("drill") or {}).get("holes") or []
     if holes:
         rows = [[h.get("index"), _f(h.get("x_mm"), 3), _f(h.get("y_mm"), 3), h.get("mode"), _f(h.get("depth_mm"), 4),
                  _f(h.get("overlap_down_s"), 3), _f(h.get("overlap_up_s"), 3), _f(h.get("cycle_time_s"), 3)]
                 for h in holes]
-        parts.append("<h2>Holes</h2>" + _table(
-            ["hole", "X mm", "Y mm", "retract mode", "depth mm", "overlap down s", "overlap up s", "time s"], rows))
+        out.append(("Holes", ["hole", "X mm", "Y mm", "retract mode", "depth mm", "overlap down s", "overlap up s",
+                              "time s"], rows))
     passes = (report.get("thread") or {}).get("passes") or []
     if passes:
         rows = [[p.get("index"), _f(p.get("depth_mm"), 3), _f(p.get("doc_mm"), 3), _f(p.get("max_chip_revs"), 2),
                  _f(100 * p["aircut_share"] if p.get("aircut_share") is not None else None, 1),
                  _f(p.get("vibration_per_rev"), 2), _f(p.get("vibration_phase_deg"), 1),
                  _f(p.get("vibration_amplitude_mm"), 3)] for p in passes]
-        parts.append("<h2>Thread passes</h2>" + _table(
-            ["pass", "depth mm", "depth of cut mm", "longest chip rev", "air-cut %", "vibration /rev", "phase deg",
-             "amplitude mm"], rows))
-    return parts
+        out.append(("Thread passes", ["pass", "depth mm", "depth of cut mm", "longest chip rev", "air-cut %",
+                                      "vibration /rev", "phase deg", "amplitude mm"], rows))
+    return out
 
 
-def _table(head: list[str], rows: list[list]) -> str:
-    th = "".join(f"<th>{_e(h)}</th>" for h in head)
-    body = "".join("<tr>" + "".join(f"<td>{_e('' if c is None else c)}</td>" for c in row) + "</tr>" for row in rows)
-    return f"<table><thead><tr>{th}</tr></thead><tbody>{body}</tbody></table>"
-
-
-def _figure(path: Path) -> str:
-    data = base64.b64encode(path.read_bytes()).decode("ascii")
-    caption = CAPTIONS.get(path.stem, path.stem.replace("_", " ").capitalize() + ".")
-    return (f'<figure id="{_e(path.stem)}"><img src="data:image/png;base64,{data}" alt="{_e(path.stem)}">'
-            f"<figcaption><b>{_e(path.name)}</b> — {_e(caption)}</figcaption></figure>")
-
-
-def _card(title: str, value: str, detail: str, cls: str) -> str:
-    return (f'<div class="card {cls}"><h3>{_e(title)}</h3><div class="v">{_e(value)}</div>'
-            f'<div class="d">{_e(detail)}</div></div>')
+def _figure(path: Path) -> dict:
+    """One plot for the page: its PNG inlined as base64, so the page needs no other file."""
+    return {"stem": path.stem, "name": path.name, "data": base64.b64encode(path.read_bytes()).decode("ascii"),
+            "caption": CAPTIONS.get(path.stem, path.stem.replace("_", " ").capitalize() + ".")}
 
 
 def _state_class(state: str) -> str:
@@ -254,6 +203,3 @@ def _mm(value) -> str:
 def _f(value, digits: int) -> str:
     return "" if value is None else f"{value:.{digits}f}"
 
-
-def _e(value) -> str:
-    return html.escape(str(value), quote=True)

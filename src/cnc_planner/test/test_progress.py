@@ -4,8 +4,10 @@ from __future__ import annotations
 import io
 from pathlib import Path
 
+import pytest
+
 from cnc_msgs_py.job import load_job_file
-from cnc_planner.progress import Progress, bar, bar_text, counts_text, job_totals, status_text
+from cnc_planner.progress import Progress, counts_text, job_totals, status_text
 
 JOBS = Path(__file__).resolve().parents[3] / "config" / "jobs"
 
@@ -18,9 +20,26 @@ class Clock:
         return self.t
 
 
+@pytest.fixture
+def clock(monkeypatch) -> Clock:
+    """A wall clock the test moves, for the plain lines and for tqdm's redraw interval alike."""
+    clock = Clock()
+    monkeypatch.setattr("tqdm.std.time", clock)
+    return clock
+
+
 def running(progress: float, duration: float = 10.0, **detail: int) -> dict:
     return {"job_id": "j1", "state": "running", "progress": progress, "phase": "S2",
             "elapsed_s": progress * duration, "duration_s": duration, "detail": detail}
+
+
+def bar_line(status: dict, totals: dict | None = None, width: int = 80) -> str:
+    """The bar a terminal of ``width`` columns shows for one running status."""
+    out = io.StringIO()
+    show = Progress(out, tty=True, totals=totals, width=width)
+    show(status)
+    show.close()
+    return out.getvalue().split("\r")[-1].rstrip()
 
 
 def test_counts_name_holes_and_passes_against_the_plan():
@@ -31,29 +50,31 @@ def test_counts_name_holes_and_passes_against_the_plan():
     assert counts_text({"rapid": 2}) == ""
 
 
-def test_bar_fills_with_the_fraction_and_stays_in_bounds():
-    assert bar(0.0, 10) == "[..........]"
-    assert bar(0.5, 10) == "[#####.....]"
-    assert bar(1.7, 10) == "[##########]"
-    assert bar(-1, 10) == "[..........]"
-
-
 def test_lines_carry_progress_counts_and_simulated_vs_job_time():
     line = status_text(running(0.45, S1=3), {"S1": 5})
     assert "45.0%" in line and "hole 3/5" in line and "sim 4.50/10.00 s" in line and "S2" in line
     assert status_text({"job_id": "j1", "state": "rejected", "reason": "drill.depth: must be > 0"}) == \
         "  j1: rejected (drill.depth: must be > 0)"
     assert "succeeded, 3.55 s" in status_text({"job_id": "j1", "state": "succeeded", "cycle_time_s": 3.552})
-    assert len(bar_text(running(0.3, **{"pass": 1}), width=40)) <= 39
+    assert len(bar_line(running(0.3, **{"pass": 1}), width=40)) <= 40
     # On an 80-column terminal the whole line fits: the bar gives way.
-    line = bar_text({**running(0.83, duration=12.72, thread_pass=6), "job_id": "thread-m12-demo"},
+    line = bar_line({**running(0.83, duration=12.72, thread_pass=6), "job_id": "thread-m12-demo"},
                     {"thread_pass": 7}, width=80)
-    assert len(line) <= 79 and line.endswith("thread pass 6/7  sim 10.56/12.72 s  S2"), line
-    assert "[########" in line and line.index("]") - line.index("[") - 1 >= 10
+    assert len(line) <= 80 and line.startswith("  thread-m12-demo  83%|"), line
+    assert line.endswith("| sim 10.56/12.72 s, thread pass 6/7, S2"), line
+    cells = line[line.index("|") + 1:line.rindex("|")]
+    assert len(cells) >= 5 and cells.startswith("#####"), line
 
 
-def test_terminal_redraws_one_line_in_place_and_ends_it():
-    out, clock = io.StringIO(), Clock()
+def test_bar_keeps_its_length_as_time_counts_and_phase_change():
+    early = bar_line(running(0.05, duration=12.72, S1=1), {"S1": 5})
+    late = bar_line({**running(0.95, duration=12.72, S1=5), "phase": "job_start"}, {"S1": 5})
+    assert "sim  0.64/12.72 s" in early and "sim 12.08/12.72 s" in late
+    assert early.index("| sim") == late.index("| sim")
+
+
+def test_terminal_redraws_one_line_in_place_and_ends_it(clock):
+    out = io.StringIO()
     show = Progress(out, tty=True, totals={"pass": 8}, clock=clock, width=100)
     show({"job_id": "j1", "state": "accepted"})
     for k in range(20):
@@ -63,15 +84,17 @@ def test_terminal_redraws_one_line_in_place_and_ends_it():
     text = out.getvalue()
     lines = text.split("\n")
     assert lines[0] == "  j1: accepted"
-    # Every running status redrew the same line: 20 carriage returns, no new lines.
+    # Every running status redrew the same line (20 carriage returns, no new lines), and the
+    # final state left the bar with its last figures, once more, before its own line.
     assert lines[1].count("\r") == 21 and "pass 6/8" in lines[1]
-    assert lines[1].split("\r")[-1].rstrip() == "  j1: succeeded, 10.00 s"  # the bar, overwritten
-    assert lines[2] == "" and len(lines) == 3
+    assert lines[1].split("\r")[-1].rstrip().endswith("| sim  9.50/10.00 s, pass 6/8, S2")
+    assert lines[2] == "  j1: succeeded, 10.00 s"
+    assert lines[3] == "" and len(lines) == 4
 
 
-def test_terminal_redraw_is_throttled():
-    out, clock = io.StringIO(), Clock()
-    show = Progress(out, tty=True, clock=clock)
+def test_terminal_redraw_is_throttled(clock):
+    out = io.StringIO()
+    show = Progress(out, tty=True, clock=clock, width=80)
     for k in range(100):
         clock.t += 0.01
         show(running(k / 100))

@@ -79,3 +79,13 @@ def test_plots_are_embedded_in_order_with_captions(tmp_path):
     assert [base64.b64decode(s) for s in sources] == [paths[1].read_bytes(), paths[0].read_bytes()]
     assert "Roughing passes over the stock outline" in text and "following error" in text
     assert "<script" not in text and "http" not in text
+
+
+def test_every_value_from_the_report_is_escaped():
+    report = {**BASE, "job_id": "<script>x</script>", "alarms": ["limit <X+>"],
+              "drill": {"holes": [{"index": 0, "mode": "<b>arc</b>"}, {"index": None}], "safety_violations": 0}}
+    text = render(report, [], job={"kind": "drill", "machine": "<mill>"})
+    assert "<script" not in text and "&lt;script&gt;x&lt;/script&gt;" in text
+    assert "alarms: limit &lt;X+&gt;" in text and "<td>&lt;b&gt;arc&lt;/b&gt;</td>" in text
+    assert "machine &lt;mill&gt;" in text
+    assert "<tr><td></td><td></td>" in text  # a hole without figures: empty cells, not 'None'

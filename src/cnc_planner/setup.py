@@ -24,7 +24,7 @@ setup(
         (f"share/{PACKAGE}/config", config("planner.yaml")),
         (f"share/{PACKAGE}/config/jobs", config("jobs/*.yaml")),
     ],
-    install_requires=["setuptools", "tqdm>=4.66", "Jinja2>=3.1"],
+    install_requires=["setuptools", "Jinja2>=3.1"],
     zip_safe=True,
     maintainer="CNC control team",
     maintainer_email="dev@cnc.local",

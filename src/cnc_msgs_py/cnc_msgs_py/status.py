@@ -15,7 +15,7 @@ class Status:
 
     ``detail`` counts the phase marks (job_events names) the job has passed; ``count`` says
     which of them a machinist counts and how many the whole job has, e.g.
-    {"event": "S1", "one": "hole", "many": "holes", "total": 50} (empty for kinds without),
+    {"event": "S1", "unit": "hole", "total": 50} (empty for kinds without),
     so a display shows "hole 3/50" without knowing the job's kind.
     """
 

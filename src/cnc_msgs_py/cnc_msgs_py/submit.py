@@ -15,6 +15,7 @@ from typing import Any, Callable
 from . import topics
 from .client import CncClient, CncClientError
 from .job import load_job
+from .progress import Progress
 from .schema import JobError
 from .tool import tool_parser
 
@@ -51,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
     node = rclpy.create_node(f"cnc_submit_{os.getpid()}")
     client = CncClient(node, args.namespace)
     job_id = doc["job_id"]
-    shown = _progress_printer()
+    shown = Progress(sys.stderr)
     client.on_progress(shown)
     try:
         client.submit(doc)
@@ -79,19 +80,6 @@ def main(argv: list[str] | None = None) -> int:
     if final["state"] == "succeeded" or (final["state"] == "canceled" and args.cancel_after is not None):
         return 0
     return 1
-
-
-def _progress_printer() -> Callable[[dict], None]:
-    """cnc-run's progress display on stderr when cnc_planner is installed, else plain lines."""
-    try:
-        from cnc_planner.progress import Progress  # optional: cnc_msgs_py does not depend on it
-
-        return Progress(sys.stderr)
-    except ImportError:
-        def show(status: dict) -> None:
-            if status["state"] != "running":
-                print(f"  {status['job_id']}: {status['state']}", file=sys.stderr, flush=True)
-        return show
 
 
 def _shutdown(node: Any) -> None:

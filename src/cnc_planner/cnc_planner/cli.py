@@ -14,12 +14,12 @@ import numpy as np
 
 from cnc_msgs_py.job import job_id_of, load_job_file, parse_job
 from cnc_msgs_py.machine import MachineError, load_machine
+from cnc_msgs_py.progress import Progress
 from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.tool import tool_parser
 from cnc_msgs_py.topics import NAMESPACE
 
 from cnc_planner.planning import plan_job
-from cnc_planner.progress import Progress, job_totals
 from cnc_planner.report_page import write_report_page
 
 
@@ -65,7 +65,7 @@ def run_main(argv: list[str] | None = None) -> int:
     from cnc_analysis.recording import read_run
 
     print(f"cnc-run: {args.job} on '{machine.name}' -> {out}", flush=True)
-    progress = Progress(totals=job_totals(doc))
+    progress = Progress()
     try:
         status = run_job(json.dumps(doc), job_id_of(doc), machine.name, out / "bag",
                          timeout=args.timeout, progress=progress, namespace=args.namespace)

@@ -36,8 +36,8 @@ def kind_of(name: str) -> JobKind:
 
 def progress_count(job: SimpleNamespace) -> dict:
     """What the job's statuses count (cnc_msgs_py.status.Status.count): the event marking
-    one more item, its names and the job's total; {} for a kind that counts nothing."""
+    one more item, what the item is called and the job's total; {} for a kind that counts nothing."""
     count = kind_of(job.kind).progress
     if count is None:
         return {}
-    return {"event": count.event, "one": count.one, "many": count.many, "total": count.total(job)}
+    return {"event": count.event, "unit": count.unit, "total": count.total(job)}

@@ -72,9 +72,8 @@ class Figures:
 class ProgressCount:
     """What a machinist counts while the job runs: the event marking one more item."""
 
-    event: str
-    one: str
-    many: str
+    event: str  # the job_events name counted
+    unit: str  # what one of them is called: hole, pass
     total: Callable[[Job], int]
 
 

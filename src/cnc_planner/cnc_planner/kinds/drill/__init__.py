@@ -64,5 +64,5 @@ KIND = JobKind(
                           check_whole=_check_whole, prepare=_prepare, settle=_hold_until_settled),
     report=ReportSection("drill", drill_section, judges_chips=True),
     figures=Figures(draw, aircut=first_hole_aircut),
-    progress=ProgressCount("S1", "hole", "holes", total=lambda job: len(job.drill.holes)),
+    progress=ProgressCount("S1", "hole", total=lambda job: len(job.drill.holes)),
 )

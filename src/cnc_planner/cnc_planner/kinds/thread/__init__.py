@@ -23,5 +23,5 @@ KIND = JobKind(
     layouts=("lathe", "lathe_y"),
     report=ReportSection("thread", thread_section, judges_chips=True),
     figures=Figures(draw),
-    progress=ProgressCount("thread_pass", "thread pass", "thread passes", total=thread_passes),
+    progress=ProgressCount("thread_pass", "thread pass", total=thread_passes),
 )

@@ -27,5 +27,5 @@ KIND = JobKind(
     layouts=("lathe", "lathe_y"),
     report=ReportSection("turn", turn_section),
     figures=Figures(draw),
-    progress=ProgressCount("pass", "pass", "passes", total=cutting_passes),
+    progress=ProgressCount("pass", "pass", total=cutting_passes),
 )

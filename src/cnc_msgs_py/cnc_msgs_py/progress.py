@@ -1,16 +1,17 @@
-"""Progress of a running job on a terminal or in a log (ROS-free).
+"""Progress of a running job on a terminal or in a log (ROS-free), for cnc-run and cnc-submit.
 
 ``Progress`` takes every ``cnc_status/1`` document of a job (as dicts, the way cnc-run's
-progress callback hands them over) and shows it:
+progress callback and CncClient.on_progress hand them over) and shows it:
 
 - on a terminal, a tqdm bar redrawn in place: percent, simulated time vs the job's planned
   time, holes or passes done (from the status's phase counts), phase;
 - otherwise plain lines, at most one per 10 % of progress, or one per 5 s of wall time on
   a job that advances slowly, plus one line for every other state (accepted, final).
 
-The counts in ``detail`` are how many of each phase mark the job has passed: ``S1`` per
-hole (its positioning move has begun), ``pass`` per roughing pass, ``thread_pass`` per
-thread pass. ``totals`` (the same names, counted on the plan) turns them into ``3/5``.
+The counts in ``detail`` are how many of each phase mark the job has passed; the status's
+``count`` names the one a machinist counts, its unit and the job's total (the planner's
+kind of job says which: ``S1`` per hole, ``pass`` per roughing pass, ``thread_pass`` per
+thread pass), which turns it into 'hole 3/5' without this display knowing any kind.
 """
 from __future__ import annotations
 
@@ -20,7 +21,6 @@ from typing import Callable, TextIO
 
 from tqdm import tqdm
 
-UNITS = {"S1": "hole", "thread_pass": "thread pass", "pass": "pass"}  # detail key -> what a machinist calls it
 LINE_STEP = 0.1  # plain lines: at most one per 10 % of progress ...
 LINE_PERIOD_S = 5.0  # ... or one per 5 s (wall) while a slow job advances
 REDRAW_PERIOD_S = 0.1  # terminal: tqdm redraws the bar at most this often
@@ -29,22 +29,16 @@ PHASE_WIDTH = 11  # room kept for the phase ('thread_pass'), so that the bar kee
 BAR_FORMAT = "  {{desc}} {{percentage:3.0f}}%|{{bar}}| sim {{n:{width}.2f}}/{{total:.2f}} s{{postfix}}"
 
 
-def counts_text(detail: dict | None, totals: dict | None = None) -> str:
-    """'hole 3/5', 'pass 2/8', 'thread pass 4' from a status's phase counts, or ''."""
-    detail = detail or {}
-    totals = totals or {}
-    parts = []
-    for key, one in UNITS.items():
-        total = totals.get(key)
-        done = detail.get(key)
-        if done is None and not total:
-            continue
-        done = int(done or 0)
-        parts.append(f"{one} {done:{len(str(int(total)))}d}/{int(total)}" if total else f"{one} {done}")
-    return "  ".join(parts)
+def counts_text(status: dict) -> str:
+    """'hole 3/5', 'pass 2/8' from a status's phase counts and what it counts, or ''."""
+    count = status.get("count") or {}
+    if not count:
+        return ""
+    done, total = int((status.get("detail") or {}).get(count["event"], 0)), int(count["total"])
+    return f"{count['unit']} {done:{len(str(total))}d}/{total}"
 
 
-def status_text(status: dict, totals: dict | None = None) -> str:
+def status_text(status: dict) -> str:
     """One status as a line without a bar (the non-terminal form)."""
     job_id = status.get("job_id", "")
     state = status.get("state", "")
@@ -54,7 +48,7 @@ def status_text(status: dict, totals: dict | None = None) -> str:
         extra = f", {cycle:.2f} s" if state == "succeeded" and cycle is not None else ""
         return f"  {job_id}: {state}{reason}{extra}"
     times = f"sim {status.get('elapsed_s', 0.0):.2f}/{status.get('duration_s', 0.0):.2f} s"
-    fields = [f"{100 * status.get('progress', 0.0):5.1f}%", times, counts_text(status.get("detail"), totals),
+    fields = [f"{100 * status.get('progress', 0.0):5.1f}%", times, counts_text(status),
               status.get("phase", "")]
     return f"  {job_id}: " + "  ".join(f for f in fields if f)
 
@@ -65,19 +59,17 @@ class Progress:
     Args:
         stream: where to write (default stdout).
         tty: draw a bar in place; default: whether ``stream`` is a terminal.
-        totals: phase counts of the whole plan, e.g. {"S1": 5}, for 'hole 3/5'.
         clock: wall clock (monotonic seconds) of the plain lines' 5 s period, replaceable in tests.
         width: line width on a terminal; default: the terminal's, followed as it is resized.
     """
 
-    def __init__(self, stream: TextIO | None = None, *, tty: bool | None = None, totals: dict | None = None,
+    def __init__(self, stream: TextIO | None = None, *, tty: bool | None = None,
                  clock: Callable[[], float] = time.monotonic, width: int | None = None) -> None:
         self.stream = stream or sys.stdout
         if tty is None:
             isatty = getattr(self.stream, "isatty", None)
             tty = bool(isatty and isatty())
         self.tty = tty
-        self.totals = dict(totals or {})
         self.clock = clock
         self.width = width
         self._bar: tqdm | None = None  # the job's bar while it is on screen (terminal)
@@ -88,7 +80,7 @@ class Progress:
     def __call__(self, status: dict) -> None:
         if status.get("state") != "running":
             self.close()
-            self._line(status_text(status, self.totals))
+            self._line(status_text(status))
         elif self.tty:
             self._draw(status)
         else:
@@ -103,7 +95,7 @@ class Progress:
     def _draw(self, status: dict) -> None:
         duration = float(status.get("duration_s", 0.0))
         done = float(status.get("progress", 0.0)) * duration  # simulated seconds, as the plan counts them
-        after = ", ".join(f for f in (counts_text(status.get("detail"), self.totals),
+        after = ", ".join(f for f in (counts_text(status),
                                       f"{status.get('phase', ''):{PHASE_WIDTH}}") if f.strip())
         if self._bar is None:
             self._bar = tqdm(total=duration, initial=done, desc=status.get("job_id", ""), postfix=after,
@@ -120,7 +112,7 @@ class Progress:
         step = int(progress / LINE_STEP + 1e-9)
         slow = self._last_time is not None and now - self._last_time >= LINE_PERIOD_S and progress > self._last_progress
         if step > self._last_step or slow:
-            self._line(status_text(status, self.totals))
+            self._line(status_text(status))
             self._last_step = max(step, self._last_step)
             self._last_progress = progress
             self._last_time = now
@@ -128,19 +120,3 @@ class Progress:
     def _line(self, text: str) -> None:
         self.stream.write(text + "\n")
         self.stream.flush()
-
-
-def job_totals(doc: dict) -> dict:
-    """Phase counts of a whole job from its document, cheaply ({} when unknown or invalid):
-    the count its kind shows (cnc_planner.kinds), e.g. {"S1": holes} for drilling. The
-    planner rejects an invalid job itself; this only labels the progress."""
-    try:
-        from cnc_msgs_py.job import parse_job
-
-        from cnc_planner.kinds import KINDS
-
-        job = parse_job(doc)
-        count = KINDS[job.kind].progress
-        return {} if count is None else {count.event: count.total(job)}
-    except Exception:  # noqa: BLE001 - labels only; the planner reports what is wrong
-        return {}

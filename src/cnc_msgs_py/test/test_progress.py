@@ -2,14 +2,13 @@
 from __future__ import annotations
 
 import io
-from pathlib import Path
-
 import pytest
 
-from cnc_msgs_py.job import load_job_file
-from cnc_planner.progress import Progress, counts_text, job_totals, status_text
+from cnc_msgs_py.progress import Progress, counts_text, status_text
 
-JOBS = Path(__file__).resolve().parents[3] / "config" / "jobs"
+HOLES = {"event": "S1", "unit": "hole", "total": 5}  # what the planner's statuses say they count
+PASSES = {"event": "pass", "unit": "pass", "total": 8}
+THREAD_PASSES = {"event": "thread_pass", "unit": "thread pass", "total": 7}
 
 
 class Clock:
@@ -28,38 +27,39 @@ def clock(monkeypatch) -> Clock:
     return clock
 
 
-def running(progress: float, duration: float = 10.0, **detail: int) -> dict:
+def running(progress: float, duration: float = 10.0, count: dict | None = None, **detail: int) -> dict:
     return {"job_id": "j1", "state": "running", "progress": progress, "phase": "S2",
-            "elapsed_s": progress * duration, "duration_s": duration, "detail": detail}
+            "elapsed_s": progress * duration, "duration_s": duration, "detail": detail, "count": count or {}}
 
 
-def bar_line(status: dict, totals: dict | None = None, width: int = 80) -> str:
+def bar_line(status: dict, width: int = 80) -> str:
     """The bar a terminal of ``width`` columns shows for one running status."""
     out = io.StringIO()
-    show = Progress(out, tty=True, totals=totals, width=width)
+    show = Progress(out, tty=True, width=width)
     show(status)
     show.close()
     return out.getvalue().split("\r")[-1].rstrip()
 
 
 def test_counts_name_holes_and_passes_against_the_plan():
-    assert counts_text({"S1": 3, "S2": 3, "job_start": 1}, {"S1": 5}) == "hole 3/5"
-    assert counts_text({"pass": 2}, {"pass": 8}) == "pass 2/8"
-    assert counts_text({"thread_pass": 4}) == "thread pass 4"
-    assert counts_text({}, {"S1": 5}) == "hole 0/5"  # nothing passed yet, but the total is known
-    assert counts_text({"rapid": 2}) == ""
+    assert counts_text({"detail": {"S1": 3, "S2": 3, "job_start": 1}, "count": HOLES}) == "hole 3/5"
+    assert counts_text({"detail": {"pass": 2}, "count": PASSES}) == "pass 2/8"
+    assert counts_text({"detail": {"thread_pass": 4}, "count": THREAD_PASSES}) == "thread pass 4/7"
+    assert counts_text({"detail": {}, "count": HOLES}) == "hole 0/5"  # nothing passed yet, but the total is known
+    assert counts_text({"detail": {"rapid": 2}, "count": {}}) == ""  # a kind that counts nothing
+    assert counts_text({"detail": {"S1": 2}}) == ""  # a status without a count (an older planner)
 
 
 def test_lines_carry_progress_counts_and_simulated_vs_job_time():
-    line = status_text(running(0.45, S1=3), {"S1": 5})
+    line = status_text(running(0.45, count=HOLES, S1=3))
     assert "45.0%" in line and "hole 3/5" in line and "sim 4.50/10.00 s" in line and "S2" in line
     assert status_text({"job_id": "j1", "state": "rejected", "reason": "drill.depth: must be > 0"}) == \
         "  j1: rejected (drill.depth: must be > 0)"
     assert "succeeded, 3.55 s" in status_text({"job_id": "j1", "state": "succeeded", "cycle_time_s": 3.552})
     assert len(bar_line(running(0.3, **{"pass": 1}), width=40)) <= 40
     # On an 80-column terminal the whole line fits: the bar gives way.
-    line = bar_line({**running(0.83, duration=12.72, thread_pass=6), "job_id": "thread-m12-demo"},
-                    {"thread_pass": 7}, width=80)
+    line = bar_line({**running(0.83, duration=12.72, count=THREAD_PASSES, thread_pass=6), "job_id": "thread-m12-demo"},
+                    width=80)
     assert len(line) <= 80 and line.startswith("  thread-m12-demo  83%|"), line
     assert line.endswith("| sim 10.56/12.72 s, thread pass 6/7, S2"), line
     cells = line[line.index("|") + 1:line.rindex("|")]
@@ -67,19 +67,19 @@ def test_lines_carry_progress_counts_and_simulated_vs_job_time():
 
 
 def test_bar_keeps_its_length_as_time_counts_and_phase_change():
-    early = bar_line(running(0.05, duration=12.72, S1=1), {"S1": 5})
-    late = bar_line({**running(0.95, duration=12.72, S1=5), "phase": "job_start"}, {"S1": 5})
+    early = bar_line(running(0.05, duration=12.72, count=HOLES, S1=1))
+    late = bar_line({**running(0.95, duration=12.72, count=HOLES, S1=5), "phase": "job_start"})
     assert "sim  0.64/12.72 s" in early and "sim 12.08/12.72 s" in late
     assert early.index("| sim") == late.index("| sim")
 
 
 def test_terminal_redraws_one_line_in_place_and_ends_it(clock):
     out = io.StringIO()
-    show = Progress(out, tty=True, totals={"pass": 8}, clock=clock, width=100)
+    show = Progress(out, tty=True, clock=clock, width=100)
     show({"job_id": "j1", "state": "accepted"})
     for k in range(20):
         clock.t += 0.5
-        show(running(k / 20, **{"pass": k // 3}))
+        show(running(k / 20, count=PASSES, **{"pass": k // 3}))
     show({"job_id": "j1", "state": "succeeded", "cycle_time_s": 10.0})
     text = out.getvalue()
     lines = text.split("\n")
@@ -105,11 +105,11 @@ def test_terminal_redraw_is_throttled(clock):
 
 def test_log_gets_at_most_one_line_per_ten_percent():
     out, clock = io.StringIO(), Clock()
-    show = Progress(out, tty=False, totals={"S1": 5}, clock=clock)
+    show = Progress(out, tty=False, clock=clock)
     show({"job_id": "j1", "state": "accepted"})
     for k in range(200):  # a status every 0.5 % of the job, 0.1 s apart
         clock.t += 0.1
-        show(running(k / 200, S1=k // 40))
+        show(running(k / 200, count=HOLES, S1=k // 40))
     show({"job_id": "j1", "state": "succeeded", "cycle_time_s": 10.0})
     lines = out.getvalue().splitlines()
     assert "\r" not in out.getvalue()
@@ -126,11 +126,3 @@ def test_slow_jobs_still_show_a_line_every_five_seconds():
         show(running(k / 2000))
     lines = out.getvalue().splitlines()
     assert 6 <= len(lines) <= 7  # the first, then one per 5 s
-
-
-def test_totals_come_from_the_job_document():
-    assert job_totals(load_job_file(JOBS / "drill_row.yaml")) == {"S1": 5}
-    assert job_totals(load_job_file(JOBS / "turn_stepped.yaml")) == {"pass": 8}
-    assert job_totals(load_job_file(JOBS / "thread_m12.yaml")) == {"thread_pass": 7}
-    assert job_totals(load_job_file(JOBS / "lathe_feed_vibration.yaml")) == {}
-    assert job_totals({"kind": "drill"}) == {}  # invalid: the planner will say why

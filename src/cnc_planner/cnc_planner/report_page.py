@@ -11,33 +11,22 @@ says; templates/report.html.j2 (jinja2, every value escaped) lays it out.
 from __future__ import annotations
 
 import base64
-import math
 from pathlib import Path
 
 from jinja2 import Environment, PackageLoader
 
-# Limits the verdicts are judged against (the same ones the integration tests use).
-CHIP_MAX_REVS = 1.0  # a chip longer than one spindle revolution is not broken
-GOUGE_LIMIT_MM = 0.01  # feedback into the finished part beyond this is a gouge
+from cnc_planner.kinds import KINDS
+from cnc_planner.kinds.kind import Card, ReportSection, Table
+from cnc_planner.vibration import page as aircut_page
+from cnc_planner.vibration.figures import CAPTIONS as AIRCUT_CAPTIONS
+
 ROTARY = ("spindle", "a", "b", "c")  # joints in rad on the topics (shown in mrad)
 PAGES = Environment(loader=PackageLoader("cnc_planner"), autoescape=True, trim_blocks=True, lstrip_blocks=True,
                     keep_trailing_newline=True)
-
-CAPTIONS = {
+CAPTIONS = {  # figure file stem -> caption: every job's figure, the air-cut figures and each kind's own
     "following_error": "Command vs feedback per axis, and the following error (command - feedback) over the job.",
-    "drill_xz": "Tool tip over the part: the air path from hole to hole on feedback, with the R plane, "
-                "the surface and the drilled depth; overlapping X and Z moves turn the R -> R' -> R path into an arc.",
-    "drill_timing": "Phases per hole on feedback: S1 X/Y positioning, S2 Z approach and feed, S3 retract. "
-                    "Overlap shows as bars of one hole running side by side.",
-    "turn_passes": "Roughing passes over the stock outline and the final profile (X radius over Z), on feedback.",
-    "aircut": "The vibrating feed: feed progress over time, command vs feedback, with the air-cut intervals.",
-    "aircut_map": "Air-cut map: feed progress unrolled over the spindle angle, one revolution after the other; "
-                  "marked intervals are where the tool is in the air and the chip breaks.",
-    "thread_passes": "Thread passes: depth of cut per pass along the flank, with the vibration on each pass.",
-    "thread_depths": "Thread pass depths: cumulative depth and depth of cut per pass.",
-    "thread_section": "Groove cross-section per pass on feedback: the tool tip sliding along the flank with "
-                      "its vibration, and each pass's depth along the groove against the pass before it "
-                      "(its returns above the previous turning points are where the chip breaks).",
+    **AIRCUT_CAPTIONS,
+    **{stem: text for kind in KINDS.values() if kind.figures for stem, text in kind.figures.captions.items()},
 }
 
 
@@ -69,51 +58,24 @@ def render(report: dict, plots: list[Path], *, job: dict | None = None) -> str:
         reason=report.get("reason"), cards=verdicts(report), tables=tables(report), figures=figures)
 
 
-def verdicts(report: dict) -> list[tuple[str, str, str, str]]:
+def _sections(report: dict) -> list[tuple[ReportSection, dict]]:
+    """The kinds' sections present in the report, with what they hold."""
+    return [(kind.report, report[kind.report.key]) for kind in KINDS.values()
+            if kind.report is not None and isinstance(report.get(kind.report.key), dict)]
+
+
+def verdicts(report: dict) -> list[Card]:
     """(title, value, detail, class) per verdict card; class is ok | bad | warn | info."""
     cards = []
     state = report.get("state", "unknown")
     cards.append(("Job", state, report.get("reason") or _job_detail(report), _state_class(state)))
     if state == "rejected":
         return cards
-    drill, turn, thread, aircut = (report.get(k) for k in ("drill", "turn", "thread", "aircut"))
-    if drill is not None:
-        n = drill.get("safety_violations", 0)
-        cards.append(("Safety", "safe" if n == 0 else f"{n} violations",
-                      f"X/Y moved while the tip was below R: {n} times, on feedback, over "
-                      f"{len(drill.get('holes', []))} holes", "ok" if n == 0 else "bad"))
-    if aircut is not None:
-        revs, broken = aircut.get("revolutions", 0), aircut.get("revolutions_with_aircut", 0)
-        chip = aircut.get("max_chip_revs", math.inf)
-        good = revs > 0 and broken == revs and chip <= CHIP_MAX_REVS
-        cards.append(("Chip breaking", "broken" if good else "long chips",
-                      f"air-cut in {broken} of {revs} revolutions; longest chip {chip:.2f} rev "
-                      f"(commanded {aircut.get('commanded', {}).get('max_chip_revs', float('nan')):.2f})",
-                      "ok" if good else "bad"))
-    if thread is not None:
-        chip = thread.get("max_chip_revs", math.inf)
-        cards.append(("Chip breaking", "broken" if thread.get("chips_broken") else "long chips",
-                      f"longest chip {chip:.2f} rev over {thread.get('cutting_passes', '?')} cutting passes",
-                      "ok" if thread.get("chips_broken") else "warn"))
-        full = thread.get("full_depth")
-        cards.append(("Thread depth", "full depth" if full else "not at depth",
-                      f"depth error {_mm(thread.get('depth_error_mm'))}, overcut {_mm(thread.get('overcut_mm'))}, "
-                      f"helix residual {_mm(thread.get('helix_residual_mm'))}; depth of cut "
-                      f"{'never grows' if thread.get('doc_never_grows') else 'grows between passes'}",
-                      "ok" if full else "bad"))
-    if turn is not None:
-        gouge = turn.get("max_gouge_part_mm", 0.0)
-        left = turn.get("stock_left_mm")
-        value = "no gouge" if gouge <= GOUGE_LIMIT_MM else f"gouge {gouge:.3f} mm"
-        detail = (f"into the part {_mm(gouge)} on feedback, into the allowance {_mm(turn.get('max_gouge_mm'))}, "
-                  f"commanded {_mm(turn.get('max_gouge_commanded_mm'))}")
-        if left is not None:
-            detail = f"stock left {_mm(left)}; " + detail
-        cards.append(("Stock left / gouge", value, detail, "ok" if gouge <= GOUGE_LIMIT_MM else "bad"))
-        cards.append(("Air moves", f"{turn.get('air_feed_mm', 0):.1f} mm",
-                      f"air cut at feed, vs {turn.get('naive_air_feed_mm', 0):.1f} mm for passes started at the "
-                      f"virtual cylinder; path {turn.get('path_mm', 0):.0f} mm vs {turn.get('naive_path_mm', 0):.0f} mm "
-                      f"in {turn.get('passes', '?')} passes", "info"))
+    if report.get("aircut") is not None:
+        cards += aircut_page.cards(report["aircut"])
+    for section, found in _sections(report):
+        if section.cards is not None:
+            cards += section.cards(found)
     cards.append(_cycle_card(report))
     cards.append(_following_card(report.get("max_following_error") or {}))
     lost, chunks = report.get("chunks_lost", 0), report.get("chunks", 0)
@@ -130,9 +92,9 @@ def _job_detail(report: dict) -> str:
     return f"planned {planned:.2f} s" if isinstance(planned, (int, float)) else ""
 
 
-def _cycle_card(report: dict) -> tuple[str, str, str, str]:
-    section = next((report[k] for k in ("drill", "turn") if isinstance(report.get(k), dict)
-                    and "cycle_time_s" in report[k]), None)
+def _cycle_card(report: dict) -> Card:
+    section = next((found for section, found in _sections(report) if section.times_cycle and "cycle_time_s" in found),
+                   None)
     cycle = (section or report).get("cycle_time_s", 0.0)
     notes, cls = [], "info"
     conventional = (section or {}).get("conventional_cycle_time_s")
@@ -152,7 +114,7 @@ def _cycle_card(report: dict) -> tuple[str, str, str, str]:
     return "Cycle time", f"{cycle:.2f} s", "; ".join(notes), cls
 
 
-def _following_card(errors: dict) -> tuple[str, str, str, str]:
+def _following_card(errors: dict) -> Card:
     if not errors:
         return "Following error", "n/a", "no feedback recorded", "info"
     linear = {k: v for k, v in errors.items() if k not in ROTARY}
@@ -161,28 +123,16 @@ def _following_card(errors: dict) -> tuple[str, str, str, str]:
     return "Following error (max)", f"{worst:.3f} mm", detail, "info"
 
 
-def tables(report: dict) -> list[tuple[str, list[str], list[list]]]:
-    """(heading, column names, rows) per table of the page: following error, holes, thread passes."""
+def tables(report: dict) -> list[Table]:
+    """(heading, column names, rows) per table of the page: following error, then the kind's (holes, passes)."""
     out = []
     errors = report.get("max_following_error") or {}
     if errors:
         rows = [[k, f"{v * 1e3:.4f}", "mrad" if k in ROTARY else "mm"] for k, v in errors.items()]
         out.append(("Following error per axis", ["axis", "max |command - feedback|", "unit"], rows))
-    holes = (report.get("drill") or {}).get("holes") or []
-    if holes:
-        rows = [[h.get("index"), _f(h.get("x_mm"), 3), _f(h.get("y_mm"), 3), h.get("mode"), _f(h.get("depth_mm"), 4),
-                 _f(h.get("overlap_down_s"), 3), _f(h.get("overlap_up_s"), 3), _f(h.get("cycle_time_s"), 3)]
-                for h in holes]
-        out.append(("Holes", ["hole", "X mm", "Y mm", "retract mode", "depth mm", "overlap down s", "overlap up s",
-                              "time s"], rows))
-    passes = (report.get("thread") or {}).get("passes") or []
-    if passes:
-        rows = [[p.get("index"), _f(p.get("depth_mm"), 3), _f(p.get("doc_mm"), 3), _f(p.get("max_chip_revs"), 2),
-                 _f(100 * p["aircut_share"] if p.get("aircut_share") is not None else None, 1),
-                 _f(p.get("vibration_per_rev"), 2), _f(p.get("vibration_phase_deg"), 1),
-                 _f(p.get("vibration_amplitude_mm"), 3)] for p in passes]
-        out.append(("Thread passes", ["pass", "depth mm", "depth of cut mm", "longest chip rev", "air-cut %",
-                                      "vibration /rev", "phase deg", "amplitude mm"], rows))
+    for section, found in _sections(report):
+        if section.tables is not None:
+            out += section.tables(found)
     return out
 
 
@@ -194,12 +144,3 @@ def _figure(path: Path) -> dict:
 
 def _state_class(state: str) -> str:
     return {"succeeded": "ok", "rejected": "bad", "aborted": "bad", "canceled": "warn"}.get(state, "info")
-
-
-def _mm(value) -> str:
-    return "n/a" if value is None else f"{value:.4f} mm"
-
-
-def _f(value, digits: int) -> str:
-    return "" if value is None else f"{value:.{digits}f}"
-

@@ -49,14 +49,22 @@ class Segmenting:
     settle: Callable[[PlanBuilder, Any, Kinematics], None] | None = None
 
 
+Card = tuple[str, str, str, str]  # a verdict on the report page: title, value, detail, ok | bad | warn | info
+Table = tuple[str, list[str], list[list]]  # a table on the report page: heading, column names, rows
+
+
 @dataclass(frozen=True)
 class ReportSection:
     """The kind's section of report.json: ``judge`` reads the recorded feedback in the job's
-    window and returns the section under ``key``."""
+    window and returns the section under ``key``; ``cards`` and ``tables`` put it on the
+    report page."""
 
     key: str
     judge: Callable[[Run, Job, Machine, np.ndarray], dict]
     judges_chips: bool = False  # it judges its own air-cuts (else vibrated feeds get the aircut section)
+    times_cycle: bool = False  # its cycle_time_s (and conventional / lower bound) is the page's cycle time
+    cards: Callable[[dict], list[Card]] | None = None
+    tables: Callable[[dict], list[Table]] | None = None
 
 
 @dataclass(frozen=True)
@@ -65,6 +73,7 @@ class Figures:
     ``draw`` returns (figure, file name) pairs."""
 
     draw: Callable[[Run, Job, Machine, np.ndarray, dict], list[tuple[Any, str]]]
+    captions: dict[str, str]  # file stem -> what the report page says under the figure
     aircut: Callable[[dict], dict | None] | None = None  # the air-cut summary the aircut figures show
 
 

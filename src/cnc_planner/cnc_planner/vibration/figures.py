@@ -18,6 +18,11 @@ from cnc_analysis.recording import Run
 from cnc_planner.drawing import MM, TWO_PI, plt
 
 PHASE_BINS = 360  # 1 deg columns of the air-cut map
+CAPTIONS = {  # figure file stem -> what the report page says under it
+    "aircut": "The vibrating feed: feed progress over time, command vs feedback, with the air-cut intervals.",
+    "aircut_map": "Air-cut map: feed progress unrolled over the spindle angle, one revolution after the other; "
+                  "marked intervals are where the tool is in the air and the chip breaks.",
+}
 
 
 def first_vibrating_feed(run: Run, job_id: str) -> SimpleNamespace | None:

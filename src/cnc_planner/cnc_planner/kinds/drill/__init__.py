@@ -14,7 +14,8 @@ from cnc_planner.motion.settle import settle_time
 
 from .block import drill_cycle
 from .drilling import DrillCycle
-from .figures import draw, first_hole_aircut
+from . import page
+from .figures import CAPTIONS, draw, first_hole_aircut
 from .planning import plan_drill
 from .report import drill_section
 
@@ -62,7 +63,8 @@ KIND = JobKind(
     layouts=("mill3", "5ax_table_table", "5ax_head_table"),
     segmenting=Segmenting(size=SEGMENT_HOLES, index="hole", count=lambda job: len(job.drill.holes), part=_part,
                           check_whole=_check_whole, prepare=_prepare, settle=_hold_until_settled),
-    report=ReportSection("drill", drill_section, judges_chips=True),
-    figures=Figures(draw, aircut=first_hole_aircut),
+    report=ReportSection("drill", drill_section, judges_chips=True, times_cycle=True, cards=page.cards,
+                         tables=page.tables),
+    figures=Figures(draw, CAPTIONS, aircut=first_hole_aircut),
     progress=ProgressCount("S1", "hole", total=lambda job: len(job.drill.holes)),
 )

@@ -22,6 +22,12 @@ MOVING = 1e-4  # m/s: below this an axis counts as standing (end of the last ret
 
 PHASES = {"S1": ("S1  X/Y to hole", "tab:blue"), "S2": ("S2  Z down + feed", "tab:red"),
           "S3": ("S3  Z retract", "tab:green")}
+CAPTIONS = {  # figure file stem -> what the report page says under it
+    "drill_xz": "Tool tip over the part: the air path from hole to hole on feedback, with the R plane, the "
+                "surface and the drilled depth; overlapping X and Z moves turn the R -> R' -> R path into an arc.",
+    "drill_timing": "Phases per hole on feedback: S1 X/Y positioning, S2 Z approach and feed, S3 retract. Overlap "
+                    "shows as bars of one hole running side by side.",
+}
 
 
 def _cycle(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray) -> DrillCycle:

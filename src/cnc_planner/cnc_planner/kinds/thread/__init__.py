@@ -5,7 +5,8 @@ from types import SimpleNamespace
 
 from cnc_planner.kinds.kind import Figures, JobKind, ProgressCount, ReportSection
 
-from .figures import draw
+from . import page
+from .figures import CAPTIONS, draw
 from .planning import plan_thread_job
 from .report import thread_section
 
@@ -21,7 +22,7 @@ KIND = JobKind(
     name="thread",
     plan=plan_thread_job,
     layouts=("lathe", "lathe_y"),
-    report=ReportSection("thread", thread_section, judges_chips=True),
-    figures=Figures(draw),
+    report=ReportSection("thread", thread_section, judges_chips=True, cards=page.cards, tables=page.tables),
+    figures=Figures(draw, CAPTIONS),
     progress=ProgressCount("thread_pass", "thread pass", total=thread_passes),
 )

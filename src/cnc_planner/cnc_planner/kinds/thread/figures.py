@@ -18,6 +18,12 @@ from cnc_analysis.recording import Run
 from cnc_planner.drawing import plt
 
 SECTION_REVS = 3.0  # revolutions of groove shown pass against pass in the thread cross-section
+CAPTIONS = {  # figure file stem -> what the report page says under it
+    "thread_passes": "Thread passes: depth of cut per pass along the flank, with the vibration on each pass.",
+    "thread_section": "Groove cross-section per pass on feedback: the tool tip sliding along the flank with its "
+                      "vibration, and each pass's depth along the groove against the pass before it (its returns above "
+                      "the previous turning points are where the chip breaks).",
+}
 
 
 def _thread_passes(thread: dict, job_id: str) -> plt.Figure:

@@ -6,7 +6,8 @@ from types import SimpleNamespace
 
 from cnc_planner.kinds.kind import Figures, JobKind, ProgressCount, ReportSection
 
-from .figures import draw
+from . import page
+from .figures import CAPTIONS, draw
 from .planning import plan_turn
 from .report import turn_section
 from .roughing import plan_roughing
@@ -25,7 +26,7 @@ KIND = JobKind(
     name="turn",
     plan=plan_turn,
     layouts=("lathe", "lathe_y"),
-    report=ReportSection("turn", turn_section),
-    figures=Figures(draw),
+    report=ReportSection("turn", turn_section, times_cycle=True, cards=page.cards),
+    figures=Figures(draw, CAPTIONS),
     progress=ProgressCount("pass", "pass", total=cutting_passes),
 )

@@ -17,6 +17,9 @@ from cnc_analysis.recording import Run
 from cnc_planner.drawing import FEEDBACK, MM, plt, recording_note, stride
 
 LOOKAHEAD_MOVES = 3  # planned moves a feedback sample may be matched to: lag cuts short moves
+CAPTIONS = {  # figure file stem -> what the report page says under it
+    "turn_passes": "Roughing passes over the stock outline and the final profile (X radius over Z), on feedback.",
+}
 
 
 def _turn_passes(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray) -> plt.Figure:

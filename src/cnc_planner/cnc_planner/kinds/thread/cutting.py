@@ -50,6 +50,7 @@ import numpy as np
 from ruckig import InputParameter, Ruckig, RuckigError, Trajectory
 
 from cnc_msgs_py.machine import SPINDLE, Machine
+from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.units import deg, to_mm
 from cnc_servo_bridge.drive import DriveModel
 from cnc_planner.motion.jerk_profile import TrajectorySampler
@@ -87,8 +88,9 @@ MAX_PASS_REVS = 2000  # spindle revolutions of one pass: checks and plans sample
 MAX_PASS_S = 600.0  # s of helix per pass: a longer pass is a mistyped pitch or speed
 
 
-class ThreadError(ValueError):
-    """A thread job that cannot be cut as asked; one line naming the job field."""
+class ThreadError(JobError):
+    """A thread job that cannot be cut as asked: the job field to change (thread.*,
+    vibration.*, spindle_rpm) and why, so it reaches the job's rejection as it is."""
 
 
 @dataclass(frozen=True)
@@ -132,7 +134,7 @@ class ThreadSpec:
         t, vib = job.thread, job.vibration
         if vib is not None and vib.D is None:
             raise ThreadError(
-                "vibration.E: a thread vibration takes D (vibrations per revolution), not E and R"
+                "vibration.E", "a thread vibration takes D (vibrations per revolution), not E and R"
             )
         return cls(
             start_z=t.start_z, end_z=t.end_z, major_radius=t.major_radius, pitch=t.pitch,
@@ -241,58 +243,58 @@ def _wave_maxima() -> np.ndarray:
 def _check_fields(spec: ThreadSpec) -> None:
     def positive(field: str, value: float) -> None:
         if not (math.isfinite(value) and value > 0):
-            raise ThreadError(f"{field}: must be > 0, got {to_mm(value):g} mm")
+            raise ThreadError(field, f"must be > 0, got {to_mm(value):g} mm")
 
     positive("thread.pitch", spec.pitch)
     positive("thread.major_radius", spec.major_radius)
     if not (math.isfinite(spec.depth) and spec.depth > 0):
-        raise ThreadError(f"thread.depth: must be > 0, got {to_mm(spec.depth):g} mm")
+        raise ThreadError("thread.depth", f"must be > 0, got {to_mm(spec.depth):g} mm")
     if spec.depth >= spec.major_radius:
         raise ThreadError(
-            f"thread.depth: {_mm(spec.depth)} is not smaller than major_radius {_mm(spec.major_radius)}"
+            "thread.depth", f"{_mm(spec.depth)} is not smaller than major_radius {_mm(spec.major_radius)}"
         )
     if not (math.isfinite(spec.taper) and 0.0 <= spec.taper < 1.0):
-        raise ThreadError(f"thread.taper: must be >= 0 and < 1 (diameter per length), got {spec.taper!r}")
+        raise ThreadError("thread.taper", f"must be >= 0 and < 1 (diameter per length), got {spec.taper!r}")
     narrowest = min(spec.surface(spec.end_z), spec.major_radius)
     if spec.depth >= narrowest:
         raise ThreadError(
-            f"thread.taper: the thread narrows to radius {_mm(narrowest)} at end_z, not more than "
+            "thread.taper", f"the thread narrows to radius {_mm(narrowest)} at end_z, not more than "
             f"thread.depth {_mm(spec.depth)}"
         )
     if not 0.0 <= spec.infeed_angle < math.pi / 2:
         raise ThreadError(
-            f"thread.infeed_angle: {math.degrees(spec.infeed_angle):g} deg is outside 0..90 deg "
+            "thread.infeed_angle", f"{math.degrees(spec.infeed_angle):g} deg is outside 0..90 deg "
             "(0 = radial infeed, below 90)"
         )
     if not spec.start_z > 0.0:
         raise ThreadError(
-            f"thread.start_z: {_mm(spec.start_z)} is not in the air: each pass starts in front of the face z=0"
+            "thread.start_z", f"{_mm(spec.start_z)} is not in the air: each pass starts in front of the face z=0"
         )
     if not spec.end_z < 0.0:
         raise ThreadError(
-            f"thread.end_z: {_mm(spec.end_z)} is on the wrong side: the thread runs from start_z "
+            "thread.end_z", f"{_mm(spec.end_z)} is on the wrong side: the thread runs from start_z "
             f"{_mm(spec.start_z)} through the face z=0 into the stock, so end_z must be < 0"
         )
     for field, value, least in (("passes", spec.passes, 1), ("spring_passes", spec.spring_passes, 0),
                                 ("starts", spec.starts, 1)):
         if not (isinstance(value, int) and value >= least):
-            raise ThreadError(f"thread.{field}: must be a whole number >= {least}, got {value!r}")
+            raise ThreadError(f"thread.{field}", f"must be a whole number >= {least}, got {value!r}")
     if spec.depths is not None:
         depths = list(spec.depths)
         if len(depths) != spec.passes:
-            raise ThreadError(f"thread.depths: {len(depths)} depths for {spec.passes} passes")
+            raise ThreadError("thread.depths", f"{len(depths)} depths for {spec.passes} passes")
         if depths[0] <= 0 or any(b <= a for a, b in zip(depths, depths[1:])):
-            raise ThreadError("thread.depths: cumulative depths must be > 0 and increase")
+            raise ThreadError("thread.depths", "cumulative depths must be > 0 and increase")
         if abs(depths[-1] - spec.depth) > 1e-9:
             raise ThreadError(
-                f"thread.depths: the last depth {_mm(depths[-1])} must equal thread.depth {_mm(spec.depth)}"
+                "thread.depths", f"the last depth {_mm(depths[-1])} must equal thread.depth {_mm(spec.depth)}"
             )
         docs = np.diff([0.0] + depths)
         grows = np.flatnonzero(docs[1:] > docs[:-1] + 1e-12)
         if grows.size:
             k = int(grows[0]) + 1
             raise ThreadError(
-                f"thread.depths: the depth of cut grows from pass {k} ({_mm(docs[k - 1])}) "
+                "thread.depths", f"the depth of cut grows from pass {k} ({_mm(docs[k - 1])}) "
                 f"to pass {k + 1} ({_mm(docs[k])}); it must never grow"
             )
 
@@ -300,15 +302,15 @@ def _check_fields(spec: ThreadSpec) -> None:
 def _check_speed(spec: ThreadSpec, machine: Machine) -> None:
     omega, spindle, z = spec.spindle_speed, machine.axis(SPINDLE), machine.axis("z")
     if not (math.isfinite(omega) and omega > 0):
-        raise ThreadError(f"spindle_rpm: a thread needs a turning spindle, got {_rpm(omega):g} rpm")
+        raise ThreadError("spindle_rpm", f"a thread needs a turning spindle, got {_rpm(omega):g} rpm")
     if omega > spindle.max_velocity * (1 + 1e-9):
         raise ThreadError(
-            f"spindle_rpm: {_rpm(omega):.0f} rpm is more than the spindle's "
+            "spindle_rpm", f"{_rpm(omega):.0f} rpm is more than the spindle's "
             f"{_rpm(spindle.max_velocity):.0f} rpm"
         )
     if spec.lead_speed > z.max_velocity:
         raise ThreadError(
-            f"thread.pitch: {to_mm(spec.pitch):g} mm/rev needs z speed {spec.lead_speed:.3g} m/s at "
+            "thread.pitch", f"{to_mm(spec.pitch):g} mm/rev needs z speed {spec.lead_speed:.3g} m/s at "
             f"{_rpm(omega):.0f} rpm, more than the z axis's {z.max_velocity:g} m/s; "
             f"max {math.floor(_rpm(z.max_velocity * TWO_PI / spec.pitch)):.0f} rpm"
         )
@@ -327,7 +329,7 @@ def _check_room(spec: ThreadSpec, machine: Machine) -> None:
     need = spec.depth * tan + travel
     if spec.start_z < need:
         raise ThreadError(
-            f"thread.start_z: {_mm(spec.start_z)} leaves too little room before the face to reach the "
+            "thread.start_z", f"{_mm(spec.start_z)} leaves too little room before the face to reach the "
             f"lead speed {to_mm(spec.lead_speed):.4g} mm/s: needs {_mm(need)} (ramp and flank offset)"
         )
     x_axis, z_axis = machine.axis("x"), machine.axis("z")
@@ -337,14 +339,14 @@ def _check_room(spec: ThreadSpec, machine: Machine) -> None:
     for x in (x0 + x_clear, x0 + x_deep):
         if not x_axis.within_travel(x):
             raise ThreadError(
-                f"thread.major_radius: the tool would reach axis x = {_mm(x)}, outside the x axis travel "
+                "thread.major_radius", f"the tool would reach axis x = {_mm(x)}, outside the x axis travel "
                 f"{_mm(x_axis.min)}..{_mm(x_axis.max)}"
             )
     overrun = spec.end_z + spec.direction * (travel + spec.pitch)
     for field, z in (("thread.start_z", z0 + spec.start_z), ("thread.end_z", z0 + overrun)):
         if not z_axis.within_travel(z):
             raise ThreadError(
-                f"{field}: the tool would reach axis z = {_mm(z)}, outside the z axis travel "
+                field, f"the tool would reach axis z = {_mm(z)}, outside the z axis travel "
                 f"{_mm(z_axis.min)}..{_mm(z_axis.max)}"
             )
 
@@ -355,14 +357,14 @@ def _check_length(spec: ThreadSpec) -> None:
     revs = length / spec.pitch
     if revs > MAX_PASS_REVS:
         raise ThreadError(
-            f"thread.pitch: {_mm(spec.pitch)} over {_mm(length)} makes {revs:.4g} revolutions per pass, "
+            "thread.pitch", f"{_mm(spec.pitch)} over {_mm(length)} makes {revs:.4g} revolutions per pass, "
             f"more than the maximum {MAX_PASS_REVS}; need pitch >= {_mm(length / MAX_PASS_REVS)}"
         )
     seconds = length / spec.lead_speed
     if seconds > MAX_PASS_S:
         least = math.ceil(_rpm(TWO_PI * length / spec.pitch / MAX_PASS_S))
         raise ThreadError(
-            f"spindle_rpm: at {_rpm(spec.spindle_speed):.4g} rpm a pass takes {seconds:.4g} s, more than the "
+            "spindle_rpm", f"at {_rpm(spec.spindle_speed):.4g} rpm a pass takes {seconds:.4g} s, more than the "
             f"maximum {MAX_PASS_S:g} s; need >= {least} rpm"
         )
 
@@ -384,11 +386,11 @@ def _chip_revs(spec: ThreadSpec, vib: ThreadVibration) -> np.ndarray:
 def _check_vibration_fields(vib: ThreadVibration) -> None:
     for field, value in (("D", vib.D), ("Q", vib.Q)):
         if not (math.isfinite(value) and value > 0):
-            raise ThreadError(f"vibration.{field}: must be > 0, got {value:g}")
+            raise ThreadError(f"vibration.{field}", f"must be > 0, got {value:g}")
     if not (math.isfinite(vib.D_step) and vib.D_step >= 0):
-        raise ThreadError(f"vibration.D_step: must be >= 0, got {vib.D_step:g}")
+        raise ThreadError("vibration.D_step", f"must be >= 0, got {vib.D_step:g}")
     if not math.isfinite(vib.phase_shift):
-        raise ThreadError(f"vibration.phase_shift: expected a finite angle, got {vib.phase_shift!r}")
+        raise ThreadError("vibration.phase_shift", f"expected a finite angle, got {vib.phase_shift!r}")
 
 
 def _check_chips(spec: ThreadSpec, vib: ThreadVibration) -> None:
@@ -396,12 +398,12 @@ def _check_chips(spec: ThreadSpec, vib: ThreadVibration) -> None:
     to change: phase_shift (if 180 deg would do), Q (with the least that works), or D."""
     if vib.Q <= 1.0:
         raise ThreadError(
-            f"vibration.Q: {vib.Q:g} never lifts the tool out of the cut: the return must rise above the "
+            "vibration.Q", f"{vib.Q:g} never lifts the tool out of the cut: the return must rise above the "
             "earlier passes by more than the depth of cut (amplitude = Q x depth of cut); need Q > 1"
         )
     if spec.spring_passes < 1:
         raise ThreadError(
-            "thread.spring_passes: 0 with a vibration leaves the last pass's returns standing; need >= 1"
+            "thread.spring_passes", "0 with a vibration leaves the last pass's returns standing; need >= 1"
         )
 
     def worst(v: ThreadVibration) -> tuple[float, int]:
@@ -417,7 +419,7 @@ def _check_chips(spec: ThreadSpec, vib: ThreadVibration) -> None:
     told = f"leaves a continuous cut of {chip:.2f} revs in pass {k}"
     if worst(ThreadVibration(vib.D, vib.Q, math.pi, vib.D_step))[0] <= CHIP_LIMIT_REVS:
         raise ThreadError(
-            f"vibration.phase_shift: {math.degrees(vib.phase_shift):g} deg {told}: its returns miss "
+            "vibration.phase_shift", f"{math.degrees(vib.phase_shift):g} deg {told}: its returns miss "
             "the previous pass's turning points; 180 deg puts them there"
         )
     qs = np.geomspace(vib.Q, Q_MAX, 40)
@@ -427,9 +429,9 @@ def _check_chips(spec: ThreadSpec, vib: ThreadVibration) -> None:
         for _ in range(12):
             mid = (lo + hi) / 2
             lo, hi = (lo, mid) if breaks(mid) else (mid, hi)
-        raise ThreadError(f"vibration.Q: {vib.Q:g} {told}; need Q >= {math.ceil(hi * 100) / 100:.2f}")
+        raise ThreadError("vibration.Q", f"{vib.Q:g} {told}; need Q >= {math.ceil(hi * 100) / 100:.2f}")
     raise ThreadError(
-        f"vibration.D: {vib.D:g} vibrations/rev (+{vib.D_step:g} per pass) {told}; the chip breaks at most "
+        "vibration.D", f"{vib.D:g} vibrations/rev (+{vib.D_step:g} per pass) {told}; the chip breaks at most "
         "once per vibration: raise D"
     )
 
@@ -461,7 +463,7 @@ def _check_follow(spec: ThreadSpec, machine: Machine) -> None:
     top, joint, quantity, need, limit, unit, p = worst
     if omega > top:
         raise ThreadError(
-            f"vibration.D: the {joint} axis cannot follow {p.per_rev:g} vibrations/rev of {_mm(p.amplitude)} "
+            "vibration.D", f"the {joint} axis cannot follow {p.per_rev:g} vibrations/rev of {_mm(p.amplitude)} "
             f"(pass {p.index + 1}) at {_rpm(omega):.0f} rpm (needs {quantity} {need:.3g} {unit}, over "
             f"{WAVE_LIMIT_SHARE:.0%} of its {limit:g} {unit}: the rest is the compensated command's); "
             f"max spindle speed {math.floor(_rpm(top)):.0f} rpm"
@@ -656,7 +658,7 @@ class ThreadCycle:
             self.cuts.append(CutTiming(cut, start, theta_ref, t_begin, t_join, t_out, retract, stop))
             return
         raise ThreadError(
-            f"thread.start_z: the axes cannot reach the helix of pass {cut.index + 1} in front of the "
+            "thread.start_z", f"the axes cannot reach the helix of pass {cut.index + 1} in front of the "
             f"face within {MAX_AIR_S:g} s"
         )
 
@@ -753,7 +755,7 @@ class ThreadCycle:
 
 
 def plan_thread(builder: PlanBuilder, spec: ThreadSpec, servo_period: float = 1e-3,
-                compensate: bool = True, checked: bool = False) -> list[dict]:
+                compensate: bool = True) -> list[dict]:
     """Append the whole thread cycle to the builder; returns one JSON-ready dict per pass.
 
     Spindle to speed; the tool to the cycle start (clearance radius, start_z; from wherever
@@ -761,16 +763,12 @@ def plan_thread(builder: PlanBuilder, spec: ThreadSpec, servo_period: float = 1e
     unless `compensate` is False); finally back to the cycle start. Events: "thread_pass"
     as each pass's air path begins, "sync" where it is on its helix.
 
-    ``checked``: the caller has run check_thread on this spec already (it costs a tenth of
-    the plan: the chip-breaking check samples every revolution of every pass).
-
     Raises:
         ThreadError: check_thread's rejections (before anything is added), or a pass whose
             helix cannot be reached before the face (the builder is then half-built: discard it).
     """
     machine = builder.machine
-    if not checked:
-        check_thread(spec, machine)
+    check_thread(spec, machine)
     x_origin, z_origin = spec.origin
     drive = DriveModel(machine, servo_period, joints=JOINTS) if compensate else None
     spindle = builder.timelines[SPINDLE]

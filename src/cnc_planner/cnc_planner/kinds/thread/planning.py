@@ -10,7 +10,7 @@ from cnc_msgs_py.machine import Machine
 from cnc_msgs_py.schema import JobError
 
 from cnc_planner.kinematics import Kinematics
-from cnc_planner.kinds.thread.cutting import ThreadError, ThreadSpec, check_thread, plan_thread
+from cnc_planner.kinds.thread.cutting import ThreadSpec, plan_thread
 from cnc_planner.motion.builder import PlanBuilder
 
 
@@ -45,10 +45,4 @@ def plan_thread_job(job: SimpleNamespace, machine: Machine, builder: PlanBuilder
     """Multi-pass thread on the lathe, with vibration along the infeed if given, placed on
     the axes by the setup and tool length."""
     origin = thread_origin(kin)
-    try:
-        spec = ThreadSpec.from_job(job, origin)
-        check_thread(spec, machine)
-    except ThreadError as err:
-        field, _, reason = str(err).partition(": ")
-        raise JobError(field, reason) from err
-    plan_thread(builder, spec, checked=True)
+    plan_thread(builder, ThreadSpec.from_job(job, origin))

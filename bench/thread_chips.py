@@ -39,9 +39,9 @@ for package in ("cnc_msgs_py", "cnc_analysis", "cnc_planner", "cnc_servo_bridge"
 from cnc_msgs_py.machine import Machine, load_machine  # noqa: E402
 from cnc_msgs_py.units import rpm, to_rpm  # noqa: E402
 from cnc_planner.motion.builder import PlanBuilder  # noqa: E402
-from cnc_planner.kinds.thread.cutting import (  # noqa: E402
-    WAVE_LIMIT_SHARE, ThreadError, ThreadSpec, ThreadVibration, check_thread, plan_thread,
-)
+from cnc_planner.kinds.thread.checks import WAVE_LIMIT_SHARE, check_thread  # noqa: E402
+from cnc_planner.kinds.thread.planning import plan_thread  # noqa: E402
+from cnc_planner.kinds.thread.spec import ThreadError, ThreadSpec, ThreadVibration  # noqa: E402
 from cnc_servo_bridge.drive import DriveModel  # noqa: E402
 from cnc_analysis.threads import analyze_thread  # noqa: E402
 from publish import write_result  # noqa: E402

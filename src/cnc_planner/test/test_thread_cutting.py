@@ -18,9 +18,9 @@ from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.units import mm
 from cnc_planner.motion.builder import PlanBuilder
 from cnc_planner.planning import plan_job
-from cnc_planner.kinds.thread.cutting import (
-    ThreadError, ThreadSpec, ThreadVibration, check_thread, pass_depths, plan_thread,
-)
+from cnc_planner.kinds.thread.checks import check_thread
+from cnc_planner.kinds.thread.planning import plan_thread
+from cnc_planner.kinds.thread.spec import ThreadError, ThreadSpec, ThreadVibration, pass_depths
 from cnc_servo_bridge.drive import DriveModel
 from cnc_analysis.threads import analyze_thread
 

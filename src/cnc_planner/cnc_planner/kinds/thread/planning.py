@@ -1,22 +1,28 @@
-"""Planning a thread job: the multi-pass thread cycle placed on the axes, its axis the
-spindle's, whatever the setup and tool length."""
+"""Planning a thread job: the checked thread cycle placed on the axes after the spindle
+and the rapid to its start, its axis the spindle's, whatever the setup and tool length."""
 from __future__ import annotations
 
+import math
 from types import SimpleNamespace
 
 import numpy as np
 
-from cnc_msgs_py.machine import Machine
+from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_msgs_py.schema import JobError
+from cnc_msgs_py.units import to_mm
+from cnc_servo_bridge.drive import DriveModel
 
 from cnc_planner.kinematics import Kinematics
-from cnc_planner.kinds.thread.cutting import ThreadError, ThreadSpec, check_thread, plan_thread
+from cnc_planner.kinds.thread.checks import check_thread
+from cnc_planner.kinds.thread.cycle import ThreadCycle
+from cnc_planner.kinds.thread.spec import JOINTS, TWO_PI, ThreadSpec
 from cnc_planner.motion.builder import PlanBuilder
+from cnc_planner.motion.timeline import Piece
 
 
+SETTLE_TIME = 0.05  # s at rest before the cycle: the drives settle after the rapid to its start
+SPINDLE_SETTLE = 0.2  # s after the spindle reaches speed: its following error has died out
 THREAD_PROBE = 0.01  # m: program radius and z steps at which the thread's axis map is probed
-
-
 THREAD_AXIS_TOL = 1e-9  # m: the probed axis positions agree with a translation within this
 
 
@@ -45,10 +51,51 @@ def plan_thread_job(job: SimpleNamespace, machine: Machine, builder: PlanBuilder
     """Multi-pass thread on the lathe, with vibration along the infeed if given, placed on
     the axes by the setup and tool length."""
     origin = thread_origin(kin)
-    try:
-        spec = ThreadSpec.from_job(job, origin)
-        check_thread(spec, machine)
-    except ThreadError as err:
-        field, _, reason = str(err).partition(": ")
-        raise JobError(field, reason) from err
-    plan_thread(builder, spec, checked=True)
+    plan_thread(builder, ThreadSpec.from_job(job, origin))
+
+
+def plan_thread(builder: PlanBuilder, spec: ThreadSpec, servo_period: float = 1e-3,
+                compensate: bool = True) -> list[dict]:
+    """Append the whole thread cycle to the builder; returns one JSON-ready dict per pass.
+
+    Spindle to speed; the tool to the cycle start (clearance radius, start_z; from wherever
+    it is, clear of the stock); every pass and start as one ThreadCycle (drive-compensated
+    unless `compensate` is False); finally back to the cycle start. Events: "thread_pass"
+    as each pass's air path begins, "sync" where it is on its helix.
+
+    Raises:
+        ThreadError: check_thread's rejections (before anything is added), or a pass whose
+            helix cannot be reached before the face (the builder is then half-built: discard it).
+    """
+    machine = builder.machine
+    check_thread(spec, machine)
+    x_origin, z_origin = spec.origin
+    drive = DriveModel(machine, servo_period, joints=JOINTS) if compensate else None
+    spindle = builder.timelines[SPINDLE]
+    builder.spindle(spec.spindle_speed)
+    builder.rapid({"x": x_origin + spec.clear_radius, "z": z_origin + spec.start_z})
+    t_ready = max(builder.end_time(list(JOINTS)) + SETTLE_TIME, builder.spindle_ready + SPINDLE_SETTLE)
+    t0 = math.ceil(t_ready / servo_period - 1e-9) * servo_period
+    cycle = ThreadCycle(spec, machine, servo_period, spindle.position_at(t0), drive)
+    for j, joint in enumerate(JOINTS):
+        builder.timelines[joint].add(Piece(t0, cycle.duration, cycle.sampler(j)), cycle.end[j])
+    report = []
+    for c in cycle.cuts:
+        cut = c.cut
+        info = {
+            "index": cut.index, "start": c.start, "spring": cut.spring,
+            "depth_mm": to_mm(cut.depth), "doc_mm": to_mm(cut.doc),
+            "amplitude_mm": to_mm(cut.amplitude),
+            "vibration_per_rev": cut.per_rev or None,
+            "vibration_phase_deg": cut.phase * 360.0 if cut.amplitude else None,
+            "spindle_phase_deg": math.degrees(TWO_PI * c.start / spec.starts),
+            "t_start": t0 + c.t_begin, "t_sync": t0 + c.t_join, "t_end": t0 + c.t_end,
+        }
+        builder.event(info["t_start"], "thread_pass", **{k: info[k] for k in (
+            "index", "start", "spring", "depth_mm", "doc_mm", "amplitude_mm",
+            "vibration_per_rev", "vibration_phase_deg")})
+        builder.event(info["t_sync"], "sync", index=cut.index, start=c.start,
+                      spindle_phase_deg=info["spindle_phase_deg"])
+        report.append(info)
+    builder.rapid({"z": z_origin + spec.start_z})
+    return report

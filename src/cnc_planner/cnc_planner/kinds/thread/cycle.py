@@ -1,0 +1,255 @@
+"""Every pass of every start cut as one continuous motion of x and z (ThreadCycle): the
+joins onto each pass's helix, the pull-outs past end_z, and the drive compensation.
+
+Every pass's helix passes start_z at the same spindle phase (the index, plus 360/starts
+per start), so all passes land in one groove; z is locked to the spindle angle, not to
+time. Each pass pulls out past end_z, into the relief groove, on a retreating stroke of
+its vibration. The whole cycle's x/z command is pre-compensated with the drive model
+(motion.compensation) so the bridge's feedback, not only the command, holds lead, depth
+and flank offset.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from ruckig import Trajectory
+
+from cnc_msgs_py.machine import Machine
+from cnc_servo_bridge.drive import DriveModel
+
+from cnc_planner.kinds.thread.helix import helix
+from cnc_planner.kinds.thread.ramps import Ramps, z_to_speed
+from cnc_planner.kinds.thread.spec import TWO_PI, Pass, ThreadError, ThreadSpec, passes_of
+from cnc_planner.motion.compensation import COMPENSATION_TAIL, learned_command
+from cnc_planner.motion.jerk_profile import TrajectorySampler
+
+COMPENSATION_BAND = (0.05, 0.12)  # of the servo rate (50..120 Hz at 1 ms): above the vibration,
+# below the encoder quantisation noise a wider band would feed into the command's jerk
+LEAD_TIME = 0.06  # s at rest before the ramp: the band-limited compensation leads this far
+SETTLED_COUNTS = 0.25  # encoder counts: a command correction below this has settled
+MAX_AIR_S = 3.0  # s: longest the search for a pass's join looks beyond its earliest start
+JOIN_ROOM_REVS = 0.25  # revolutions of helix, at least, between joining it and the face
+JOIN_BATCH = 64  # candidate joins whose helix states are evaluated at once
+
+
+def _evaluate(trajectory: Trajectory, t: np.ndarray) -> np.ndarray:
+    """(3, len(t), dofs): position, velocity, acceleration; the end state after the end."""
+    return TrajectorySampler(trajectory).sample(np.minimum(t, trajectory.duration))
+
+
+Stretch = tuple[float, Callable[[np.ndarray], np.ndarray]]  # (cycle time it begins,
+# cycle times -> (3, len(t)): one axis's position, velocity and acceleration)
+
+
+def _held(position: float) -> Stretch:
+    return lambda t: np.stack([np.full(t.size, position), np.zeros(t.size), np.zeros(t.size)])
+
+
+def _moving(start: float, trajectory: Trajectory) -> Stretch:
+    sampler = TrajectorySampler(trajectory)  # read once: a stretch is sampled many times
+    return lambda t: sampler.sample(np.minimum(t - start, sampler.duration))[:, :, 0]
+
+
+@dataclass
+class CutTiming:
+    """Where one pass of one start lies on the cycle's clock (s from the cycle start)."""
+
+    cut: Pass
+    start: int
+    theta_ref: float  # absolute spindle angle at which this pass's helix passes start_z
+    t_begin: float  # its air path begins (the previous pass leaves its helix)
+    t_join: float  # on the helix
+    t_out: float  # leaves the helix past end_z
+    retract: Trajectory  # x out to the clearance radius from t_out
+    stop: Trajectory  # z to rest from t_out
+
+    @property
+    def t_end(self) -> float:
+        return self.t_out + max(self.retract.duration, self.stop.duration)
+
+
+class ThreadCycle:
+    """Every pass of every start as one continuous motion of x and z, on a clock from the
+    cycle start (at rest at the clearance radius and start_z, the spindle at speed).
+
+    Between passes the tool never stops to wait. As a pass leaves its helix past end_z, x
+    pulls out to the clearance radius and z stops; z turns back as soon as x is out of the
+    stock (the rest of the retract overlaps the return) and runs one jerk-limited path
+    straight onto the next pass's running helix, timed to arrive there at the servo
+    instant the spindle phase allows: the wait for the phase is spent in the return.
+    x plunges to the pass depth in front of the face, on a path that ends on the helix.
+    Which helix revolution a pass joins is the earliest whose join lies before the face by
+    JOIN_ROOM_REVS and that the axes can reach with the tool never inside the stock over
+    the thread. With a drive model the whole cycle is compensated at once
+    (motion.compensation): the command's lead-in of each pass runs while the tool is
+    still in the air, and only the cycle's start needs LEAD_TIME at rest.
+    """
+
+    def __init__(self, spec: ThreadSpec, machine: Machine, period: float, theta0: float,
+                 drive: DriveModel | None = None) -> None:
+        self.spec, self.machine, self.period, self.theta0 = spec, machine, period, theta0
+        self._ramps = Ramps(machine)
+        self.t_lead = round(LEAD_TIME / period) * period
+        self.x_clear = spec.origin[0] + spec.clear_radius
+        self.tracks: list[list[Stretch]] = [[(0.0, _held(self.x_clear))],
+                                            [(0.0, _held(spec.origin[1] + spec.start_z))]]
+        self.cuts: list[CutTiming] = []
+        for cut in passes_of(spec):
+            for start in range(spec.starts):
+                self._add(cut, start)
+        self.end = np.array([self.cuts[-1].retract.at_time(self.cuts[-1].retract.duration)[0][0],
+                             self.cuts[-1].stop.at_time(self.cuts[-1].stop.duration)[0][0]])
+        self.duration = math.ceil(self.cuts[-1].t_end / period - 1e-9) * period
+        self._correction: np.ndarray | None = None
+        self._cache: tuple[tuple[int, float, float], np.ndarray] | None = None
+        if drive is not None:
+            self._compensate(drive)
+
+    def psi(self, theta_ref: float, t: np.ndarray | float) -> np.ndarray | float:
+        """Helix angle at cycle time t of the helix that passes start_z at theta_ref."""
+        return self.theta0 + self.spec.spindle_speed * t - theta_ref
+
+    def _state(self, cut: Pass, theta_ref: float, t: float) -> np.ndarray:
+        return helix(self.spec, cut, np.array([self.psi(theta_ref, t)]))[:, 0, :].T  # rows x, z
+
+    def _add(self, cut: Pass, start: int) -> None:
+        spec, period = self.spec, self.period
+        s, x0, z0 = spec.direction, spec.origin[0], spec.origin[1]
+        if self.cuts:
+            last = self.cuts[-1]
+            t_begin, x_free = last.t_out, last.t_out + last.retract.duration
+            out = np.arange(math.ceil(last.retract.duration / period) + 1) * period
+            depth = spec.radial * (_evaluate(last.retract, out)[0, :, 0] - x0 - spec.surface(spec.end_z))
+            t_clear = last.t_out + float(out[np.flatnonzero(depth <= 0.0)[0]])
+            t_go = math.ceil(max(t_clear, last.t_out + last.stop.duration) / period - 1e-9) * period
+            z_from = last.stop.at_time(last.stop.duration)[0][0]
+        else:
+            t_begin, x_free = 0.0, self.t_lead
+            t_go, z_from = self.t_lead, z0 + spec.start_z
+        phase = TWO_PI * start / spec.starts
+        psi_room = TWO_PI * (spec.start_z / spec.pitch - JOIN_ROOM_REVS)  # the latest join before the face
+        z_rest, x_rest = [z_from, 0.0, 0.0], [self.x_clear, 0.0, 0.0]
+        first = math.ceil(t_go / period - 1e-9) + 1
+        for k, t_join, theta_ref, target in self._joins(cut, phase, psi_room, first,
+                                                        first + math.ceil(MAX_AIR_S / period)):
+            z_target = target[1].tolist()
+            fastest = self._ramps.reach("z", z_rest, z_target)
+            if fastest is None or fastest.duration > t_join - t_go + 1e-12:
+                continue
+            back = self._ramps.reach("z", z_rest, z_target, duration=t_join - t_go)
+            plunge = self._ramps.reach("x", x_rest, target[0].tolist())
+            if (back is None or abs(back.duration - (t_join - t_go)) > 1e-9 or plunge is None
+                    or t_join - plunge.duration < x_free - 1e-12):
+                continue
+            tried = [[(t_join - plunge.duration, _moving(t_join - plunge.duration, plunge))],
+                     [(t_go, _moving(t_go, back))]]
+            grid = np.arange(math.floor(t_begin / period), k) * period
+            x, z = (self._sample(track + extra, grid)[0] for track, extra in zip(self.tracks, tried))
+            depth = spec.radial * (x - x0 - spec.surface(z - z0))
+            over_stock = (s * (z - z0) >= 0.0) & (s * (z - z0) <= s * spec.end_z)
+            if np.any(over_stock & (depth > 0.0)):
+                continue
+            on_helix = self._on_helix(cut, theta_ref)
+            for j in range(2):
+                self.tracks[j] += tried[j] + [(t_join, lambda t, j=j: on_helix(t)[:, :, j])]
+            t_out, retract, stop = self._exit(cut, theta_ref, t_join)
+            self.tracks[0].append((t_out, _moving(t_out, retract)))
+            self.tracks[1].append((t_out, _moving(t_out, stop)))
+            self.cuts.append(CutTiming(cut, start, theta_ref, t_begin, t_join, t_out, retract, stop))
+            return
+        raise ThreadError(
+            "thread.start_z", f"the axes cannot reach the helix of pass {cut.index + 1} in front of the "
+            f"face within {MAX_AIR_S:g} s"
+        )
+
+    def _on_helix(self, cut: Pass, theta_ref: float) -> Callable[[np.ndarray], np.ndarray]:
+        """Cycle times -> helix of the pass joined at theta_ref; x and z ask for the same
+        instants one after the other, so the last answer is kept (for exactly those instants:
+        grids that differ by rounding only must not share it)."""
+        last = [np.empty(0), helix(self.spec, cut, np.empty(0))]  # instants, helix there
+
+        def on_helix(t: np.ndarray) -> np.ndarray:
+            if not np.array_equal(last[0], t):
+                last[:] = t.copy(), helix(self.spec, cut, self.psi(theta_ref, t))
+            return last[1]
+
+        return on_helix
+
+    def _joins(self, cut: Pass, phase: float, psi_room: float, first: int, stop: int):
+        """Candidate joins k in [first, stop) in order: (k, t_join, theta_ref of the latest
+        helix revolution joined before psi_room, the helix state there (rows x, z; columns
+        p, v, a)), evaluated JOIN_BATCH at a time: most are rejected on ruckig's fastest
+        time alone."""
+        spec = self.spec
+        for lo in range(first, stop, JOIN_BATCH):
+            t_joins = np.arange(lo, min(stop, lo + JOIN_BATCH)) * self.period
+            theta_refs = phase + TWO_PI * np.ceil(
+                (self.theta0 + spec.spindle_speed * t_joins - psi_room - phase) / TWO_PI)
+            targets = helix(spec, cut, self.psi(theta_refs, t_joins)).transpose(1, 2, 0)
+            yield from zip(range(lo, lo + len(t_joins)), t_joins.tolist(), theta_refs.tolist(), targets)
+
+    def _exit(self, cut: Pass, theta_ref: float, t_join: float) -> tuple[float, Trajectory, Trajectory]:
+        """Leave the helix past end_z when the vibration retreats: x out to the clearance
+        radius, z to a time-optimal stop."""
+        spec, period = self.spec, self.period
+        psi_end = TWO_PI * spec.direction * (spec.end_z - spec.start_z) / spec.pitch
+        t_end = (psi_end + theta_ref - self.theta0) / spec.spindle_speed
+        first = max(math.ceil(t_end / period - 1e-9), round(t_join / period) + 1)
+        cycle = TWO_PI / (spec.spindle_speed * cut.per_rev) if cut.per_rev else period
+        t = (first + np.arange(math.ceil(cycle / period) + 1)) * period
+        depth_rate = spec.radial * helix(spec, cut, self.psi(theta_ref, t))[1][:, 0]
+        t_out = float(t[np.flatnonzero(depth_rate <= 1e-12)[0]])
+        state = self._state(cut, theta_ref, t_out)
+        retract = self._ramps.reach("x", state[0].tolist(), [self.x_clear, 0.0, 0.0])
+        stop = z_to_speed(self.machine, state[1], 0.0)
+        return t_out, retract, stop
+
+    @staticmethod
+    def _sample(track: list[Stretch], t: np.ndarray) -> np.ndarray:
+        """(3, len(t)) of one axis at sorted t: each stretch from its start until the next
+        begins (the first one before its start too)."""
+        out = np.empty((3, t.size))
+        bounds = np.searchsorted(t, [begin for begin, _ in track[1:]], side="left").tolist()
+        for (_, stretch), lo, hi in zip(track, [0] + bounds, bounds + [t.size]):
+            if hi > lo:
+                out[:, lo:hi] = stretch(t[lo:hi])
+        return out
+
+    def ideal(self, t: np.ndarray) -> np.ndarray:
+        """(3, len(t), 2): the motion itself (what the feedback should do)."""
+        return np.stack([self._sample(track, t) for track in self.tracks], 2)
+
+    def _compensate(self, drive: DriveModel) -> None:
+        n = math.ceil((self.duration + COMPENSATION_TAIL) / self.period) + 1
+        p, v, a = self.ideal(np.arange(n) * self.period)
+        # settled within a fraction of an encoder count: below that it is quantisation the
+        # learning picked up from the simulated encoder, not lag
+        tolerance = SETTLED_COUNTS * float(np.min(drive.resolution))
+        self._correction = learned_command(drive, p, v, a, round(LEAD_TIME / self.period) // 2,
+                                           round(self.duration / self.period), self.period, COMPENSATION_BAND,
+                                           tolerance)
+        self.duration = (self._correction.shape[1] - 1) * self.period
+
+    def sample_all(self, t: np.ndarray) -> np.ndarray:
+        """(3, len(t), 2): the command at cycle times t (cached: x and z ask alike)."""
+        key = (t.size, float(t[0]), float(t[-1])) if t.size else (0, 0.0, 0.0)
+        if self._cache is not None and self._cache[0] == key:
+            return self._cache[1]
+        out = self.ideal(t)
+        if self._correction is not None:
+            grid = np.arange(self._correction.shape[1]) * self.period
+            for k in range(3):
+                for j in range(2):
+                    out[k, :, j] += np.interp(t, grid, self._correction[k, :, j], right=0.0)
+        self._cache = (key, out)
+        return out
+
+    def sampler(self, joint: int):
+        def sample(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            out = self.sample_all(t)
+            return out[0][:, joint], out[1][:, joint], out[2][:, joint]
+
+        return sample

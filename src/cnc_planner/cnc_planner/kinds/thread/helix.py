@@ -1,0 +1,52 @@
+"""Where the tool is on the helix of one pass, its vibration included: the groove
+geometry every pass follows once it has joined its helix.
+
+Geometry (SI, external thread; an internal one mirrors x). Pass k cuts to the cumulative
+radial depth d_k. The tool moves in along the infeed line, at infeed_angle from radial:
+at depth d its tip is at x = major_radius - d and shifted d*tan(infeed_angle) along the
+feed, so it slides down the trailing flank and its leading edge does the cutting. The
+helix angle psi of a pass is the spindle angle counted from where that pass's helix
+passes start_z; psi is the groove coordinate, the same point of the groove on every pass:
+
+    depth(psi) = d_k - A_k * (1 - w(D_k*psi/2pi + k*phase_shift/2pi))
+    x = surface(g) - depth,   z = g - depth*tan(infeed_angle),   g = start_z - pitch*psi/2pi
+
+with surface(g) = major_radius on a straight thread; on a taper thread (`taper`, diameter
+per length) the stock is a cone, major_radius at the face and growing by taper/2 per unit
+of length into the part (shrinking into a bore), so x follows the cone along the groove
+and both axes stay locked to the spindle angle; the depth stays radial below the cone.
+
+with w the vibration module's waveform (0 at the return point, 1 at the turning point),
+A_k = Q * (d_k - d_(k-1)) the radial amplitude and D_k = D + k*D_step. The vibration
+therefore moves x and z together along the infeed line and never leaves the flank. With
+phase_shift = 180 deg pass k returns where pass k-1 reached its turning point d_(k-1);
+with Q > 1 its return lies above it: the tool is in air there and the chip breaks, at
+least once per vibration. Spring passes run at full depth without vibration and take
+off what the last returns left standing.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from cnc_planner.kinds.thread.spec import TWO_PI, Pass, ThreadSpec
+from cnc_planner.vibration.waveform import waveform
+
+
+def helix(spec: ThreadSpec, cut: Pass, psi: np.ndarray) -> np.ndarray:
+    """(3, len(psi), 2): axis x and z, their velocity and acceleration on the helix of a
+    pass with its vibration, at helix angles psi (the spindle turning at speed)."""
+    omega, s, tan = spec.spindle_speed, spec.direction, math.tan(spec.infeed_angle)
+    rate = cut.per_rev * omega / TWO_PI
+    w, w1, w2, _ = waveform(cut.per_rev * psi / TWO_PI + cut.phase)
+    depth = cut.depth - cut.amplitude * (1.0 - w)
+    ddepth, dddepth = cut.amplitude * rate * w1, cut.amplitude * rate**2 * w2
+    groove = spec.start_z + s * spec.pitch * psi / TWO_PI  # the groove's z under the tool
+    cone = spec.radial * spec.taper / 2 * s * spec.lead_speed  # x speed of the surface along it
+    out = np.empty((3, psi.size, 2))
+    out[0, :, 0] = spec.origin[0] + spec.surface(groove) + spec.radial * depth
+    out[0, :, 1] = spec.origin[1] + groove + s * depth * tan
+    out[1] = np.stack([cone + spec.radial * ddepth, s * (spec.lead_speed + tan * ddepth)], 1)
+    out[2] = np.stack([spec.radial * dddepth, s * tan * dddepth], 1)
+    return out

@@ -83,7 +83,7 @@ class Machine:
     kinematics: KinematicParams = KinematicParams()
     home: tuple[float, ...] = ()  # where the axes stand at power-up, in joint order (0 if empty)
     # The machine as described, when this one is a derated copy the planner plans motion
-    # on (cnc_planner.headroom): the drives still clamp at the described limits.
+    # on (cnc_planner.motion.derating): the drives still clamp at the described limits.
     nominal: Machine | None = None
 
     @property

@@ -1,7 +1,7 @@
 """Arcs of lathe outlines (stock and profile in the Z-X plane), expanded into chords.
 
 Pure Python so that job parsing can expand arcs without the planner; the planner's
-``cnc_planner.turning.arc_points`` is this function with its own error type.
+``cnc_planner.kinds.turn.roughing.arc_points`` is this function with its own error type.
 """
 from __future__ import annotations
 

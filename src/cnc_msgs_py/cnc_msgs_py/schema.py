@@ -177,6 +177,23 @@ class Obj:
         return SimpleNamespace(**out)
 
 
+@dataclass(frozen=True)
+class PointOr:
+    """A point given as a list, or a mapping form of it (an arc, a hole with its own depth)."""
+
+    point: List
+    mapping: Obj
+    expected: str
+    default: Any = None
+
+    def check(self, value: Any, path: str) -> Any:
+        if isinstance(value, dict):
+            return self.mapping.check(value, path)
+        if isinstance(value, list):
+            return self.point.check(value, path)
+        raise JobError(path, f"expected {self.expected}, got {show(value)}")
+
+
 def _default(spec: Any) -> Any:
     """Defaults are written in the spec's own unit, so they convert like input."""
     if spec.default is None:
@@ -186,3 +203,13 @@ def _default(spec: Any) -> Any:
 
 def _join(path: str, key: str) -> str:
     return f"{path}.{key}" if path else key
+
+
+def given(doc: Any, dotted: str) -> bool:
+    """Whether a raw document gives a value (not null) at a dotted key path."""
+    node: Any = doc
+    for key in dotted.split("."):
+        if not isinstance(node, dict) or node.get(key) is None:
+            return False
+        node = node[key]
+    return True

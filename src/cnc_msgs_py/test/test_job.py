@@ -6,13 +6,15 @@ are worked out by hand (1 mm = 1e-3 m, 1 min = 60 s, 1 rev = 2*pi rad).
 from __future__ import annotations
 
 import copy
+import dataclasses
 import json
 import math
 
 import pytest
 
 from cnc_msgs_py import units
-from cnc_msgs_py.job import KINDS, MAX_LIST, SCHEMA, decode_job, job_id_of, load_job_file, parse_job
+from cnc_msgs_py.job import JOB, KINDS, MAX_LIST, SCHEMA, decode_job, job_id_of, load_job_file, parse_job
+from cnc_msgs_py.kinds import BLOCK_ORDER, KIND_SCHEMAS
 from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.status import FINAL_STATES, STATES, Status, decode_cancel, encode_cancel
 
@@ -119,6 +121,23 @@ def rejected(document, field: str, *words: str) -> JobError:
 
 def test_the_examples_cover_every_kind():
     assert sorted(DOCS) == sorted(KINDS)
+
+
+def test_the_job_schema_is_built_from_the_kind_registry():
+    assert sorted(BLOCK_ORDER) == sorted(KIND_SCHEMAS) == sorted(KINDS)
+    for name, kind in KIND_SCHEMAS.items():
+        assert kind.name == name
+        assert JOB.fields[name] is kind.block
+
+
+def test_a_kinds_rules_are_the_ones_its_registry_entry_holds(monkeypatch):
+    def refuse(job):
+        raise JobError("path.points", "refused by the registered rule")
+
+    monkeypatch.setitem(KIND_SCHEMAS, "path", dataclasses.replace(KIND_SCHEMAS["path"], check=refuse))
+    rejected(doc("path"), "path.points", "refused by the registered rule")
+    monkeypatch.setitem(KIND_SCHEMAS, "move", dataclasses.replace(KIND_SCHEMAS["move"], needs_spindle=True))
+    rejected(doc("move"), "spindle_rpm", "must be > 0 for a move job")
 
 
 @pytest.mark.parametrize("kind", KINDS)

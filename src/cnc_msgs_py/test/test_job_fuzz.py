@@ -21,7 +21,8 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis.control import currently_in_test_context
 from hypothesis import strategies as st
 
-from cnc_msgs_py.job import AXIS_KEYS, JOB, parse_job
+from cnc_msgs_py.job import JOB, parse_job
+from cnc_msgs_py.kinds.move import AXIS_KEYS
 from cnc_msgs_py.schema import JobError, List, Obj, _key
 
 ROOT = Path(__file__).resolve().parents[3]

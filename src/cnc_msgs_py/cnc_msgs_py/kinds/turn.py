@@ -1,0 +1,108 @@
+"""Turn jobs: roughing (G71-like) a lathe stock down to a profile, optionally with a finishing pass.
+
+Lathe outlines (``turn.stock``, ``turn.profile``) run right to left (z decreasing) as
+``[z, radius]`` points. An entry may instead be an arc from the previous point::
+
+    profile:
+    - [0, 10]
+    - {arc_to: [-5, 15], radius: 5}        # by radius: the shorter arc
+    - {arc_to: [-10, 20], center: [-10, 15]}  # by center (the shorter arc)
+    - [-40, 20]
+
+``radius`` is signed: positive turns counter-clockwise in the Z-X plane (z right, x up), which,
+run right to left, bulges away from the axis (convex, a rounded corner); negative bulges towards
+it (concave, a fillet or a round groove). Give ``center``, ``radius`` or both (a half circle
+needs the radius to pick its side; with both, |radius| must be the center's distance). The
+parser expands every arc into chords within 1 um of the arc (``cnc_msgs_py.outline``), so the
+parsed job holds plain point lists; an arc whose radius is shorter than half its chord, whose
+center is not equally far from both ends, that is the first entry or that turns back in z is
+refused at its field path (e.g. ``turn.profile[2].radius``).
+
+``turn.finish_allowance`` (radial, as U of G71) and ``turn.finish_allowance_z`` (axial, as W,
+default 0.1 mm) are left on the profile by roughing: the tool stays that far off diameters and
+shoulder faces, in both directions.
+"""
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+from ..outline import CHORD_TOLERANCE, ArcError, arc_points
+from ..schema import Bool, JobError, List, Num, Obj, PointOr
+from .kind import MAX_LIST, THREAD_ONLY_VIBRATION, KindSchema, mm_text
+
+# The smallest values that make sense on a lathe (smaller ones would plan moves lasting years).
+MIN_FEED_PER_REV = 0.001  # mm/rev
+MIN_DEPTH_OF_CUT = 0.01  # mm, radial
+MIN_CLEARANCE = 0.001  # mm
+
+POINT_ZX = List(Num("mm"), length=2)  # [z, radius] on the lathe
+ARC_ZX = Obj({"arc_to": POINT_ZX, "radius": Num("mm", default=None), "center": List(Num("mm"), length=2, default=None)})
+# A ``[z, radius]`` point, or an arc ``{arc_to, radius and/or center}`` from the previous point.
+OUTLINE = List(PointOr(POINT_ZX, ARC_ZX, "a [z, radius] point or an {arc_to: ...} arc"), min_len=2, max_len=MAX_LIST)
+
+TURN = Obj({
+    "stock": OUTLINE,
+    "profile": OUTLINE,
+    "depth_of_cut": Num("mm", gt=0.0, min=MIN_DEPTH_OF_CUT, max=20.0),
+    "clearance": Num("mm", gt=0.0, min=MIN_CLEARANCE, max=20.0, default=0.5),
+    "feed": Num("mm/rev", gt=0.0, min=MIN_FEED_PER_REV, max=5.0),
+    "origin": POINT_ZX,
+    "finish_allowance": Num("mm", min=0.0, max=5.0, default=0.0),
+    "finish_allowance_z": Num("mm", min=0.0, max=5.0, default=0.1),
+    "finishing_pass": Bool(default=False),
+}, default=None)
+
+
+def expand_outline(entries: list, path: str) -> list[list[float]]:
+    """The outline's points with every arc expanded into chords (SI); JobError at the arc's path."""
+    points: list[list[float]] = []
+    for i, entry in enumerate(entries):
+        where = f"{path}[{i}]"
+        if isinstance(entry, list):
+            points.append(entry)
+            continue
+        if not points:
+            raise JobError(where, "an arc needs a point before it to start from")
+        start, end = points[-1], entry.arc_to
+        if entry.radius is None and entry.center is None:
+            raise JobError(where, "an arc needs a radius or a center")
+        chord = ((end[0] - start[0]) ** 2 + (end[1] - start[1]) ** 2) ** 0.5
+        if chord <= 1.0e-12:
+            raise JobError(f"{where}.arc_to", "is the previous point: an arc needs two different ends")
+        if entry.radius is not None and abs(entry.radius) < chord / 2.0 - 1.0e-12:
+            raise JobError(f"{where}.radius", f"{mm_text(abs(entry.radius))} is shorter than half the chord "
+                           f"({mm_text(chord / 2.0)}) from the previous point")
+        if entry.center is not None:
+            c = entry.center
+            rs = ((start[0] - c[0]) ** 2 + (start[1] - c[1]) ** 2) ** 0.5
+            re_ = ((end[0] - c[0]) ** 2 + (end[1] - c[1]) ** 2) ** 0.5
+            if abs(rs - re_) > 1.0e-9 * max(rs, 1.0):
+                raise JobError(f"{where}.center", f"not equally far from the arc's start ({mm_text(rs)}) and "
+                               f"end ({mm_text(re_)})")
+            if entry.radius is not None and abs(abs(entry.radius) - rs) > 1.0e-9 * max(rs, 1.0):
+                raise JobError(f"{where}.radius", f"{mm_text(abs(entry.radius))} does not match the center "
+                               f"({mm_text(rs)} away)")
+        try:
+            arc = arc_points(tuple(start), tuple(end), None if entry.center is None else tuple(entry.center),
+                             entry.radius, CHORD_TOLERANCE)
+        except ArcError as err:
+            raise JobError(f"{where}.center" if "half circle" in str(err) else where,
+                           str(err).removeprefix("arc: ")) from err
+        for (z0, _), (z1, x1) in zip(arc, arc[1:]):
+            if z1 > z0 + 1.0e-12:
+                raise JobError(where, "the arc turns back in z (outlines run right to left, z decreasing)")
+        for z, x in arc[1:]:
+            points.append([min(z, points[-1][0]), x])  # a vertical tangent may carry float noise
+        points[-1] = list(end)
+    if len(points) > MAX_LIST:
+        raise JobError(path, f"has {len(points)} points with the arcs expanded, more than the maximum {MAX_LIST}")
+    return points
+
+
+def check(job: SimpleNamespace) -> None:
+    """The stock and the profile as plain point lists, their arcs expanded into chords."""
+    job.turn.stock = expand_outline(job.turn.stock, "turn.stock")
+    job.turn.profile = expand_outline(job.turn.profile, "turn.profile")
+
+
+KIND = KindSchema("turn", TURN, check, unused=THREAD_ONLY_VIBRATION, needs_spindle=True, lathe_tool=True)

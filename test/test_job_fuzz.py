@@ -24,8 +24,10 @@ from hypothesis import strategies as st
 from cnc_msgs_py.job import JOB, parse_job
 from cnc_msgs_py.kinds.move import AXIS_KEYS
 from cnc_msgs_py.schema import JobError, List, Obj, _key
+from cnc_planner.executive import Executive
+from cnc_planner.planning import INTERNAL
 
-ROOT = Path(__file__).resolve().parents[3]
+ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = {p.name: yaml.safe_load(p.read_text()) for p in sorted((ROOT / "config" / "jobs").glob("*.yaml"))}
 WHOLE_DOCUMENT = ("not valid JSON", "expected a mapping")
 FUZZ = settings(derandomize=True, database=None, deadline=None, print_blob=False,
@@ -106,8 +108,6 @@ def _machine(name: str):
 
 def verdict(doc) -> None:
     """parse_job and Executive.submit on one document: never a crash, a field-naming reason."""
-    from cnc_planner.executive import Executive
-    from cnc_planner.planning import INTERNAL
 
     try:
         parse_job(copy.deepcopy(doc))

@@ -13,7 +13,7 @@ from cnc_planner.motion.builder import PlanBuilder
 from cnc_planner.motion.settle import settle_time
 
 from .block import drill_cycle
-from .drilling import DrillCycle
+from .cycle import DrillCycle
 from .figures import draw, first_hole_aircut
 from .planning import plan_drill
 from .report import drill_section

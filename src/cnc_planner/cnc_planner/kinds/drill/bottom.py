@@ -20,7 +20,7 @@ import numpy as np
 from cnc_msgs_py.machine import Machine
 from cnc_servo_bridge.drive import DriveModel
 
-from cnc_planner.kinds.drill.cycle import RETURN_CLEARANCE, DrillCycle
+from cnc_planner.kinds.drill.cycle import RETURN_CLEARANCE, DrillCycle, DrillError
 from cnc_planner.kinds.drill.peck import peck_moves
 from cnc_planner.kinds.drill.retract import Retract
 from cnc_planner.kinds.drill.z_axis import ZAxis, z_move, z_samples, z_state
@@ -132,6 +132,6 @@ class Bottoms:
                     break
                 turn -= error
                 if not self.machine.axes["z"].within_travel(turn):
-                    raise ValueError(f"bottom_z: the drive needs a command at {turn} m, outside the Z travel")
+                    raise DrillError("drill", f"bottom_z: the drive needs a command at {turn} m, outside the Z travel")
             self._turns[key] = turn
         return self._turns[key]

@@ -1,7 +1,10 @@
-"""The drill cycle the planner drills: holes, planes, feed and options in axis coordinates."""
+"""The drill cycle the planner drills: holes, planes, feed and options in axis coordinates,
+and the error that names the job field a cycle cannot be drilled for."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+
+from cnc_msgs_py.schema import JobError
 
 from cnc_planner.kinds.drill.peck import Peck
 from cnc_planner.vibration.waveform import Vibration
@@ -10,6 +13,11 @@ from cnc_planner.vibration.waveform import Vibration
 # above R on feedback too, where Z reads up to ~0.3 mm below its command while braking).
 # The overlapped cycle ends at this level as well after its last hole (mode 3).
 RETURN_CLEARANCE = 1e-3
+
+
+class DrillError(JobError):
+    """A cycle this machine cannot drill; ``field`` is the job's field path ("drill.feed",
+    "drill.holes[3]", "drill.mode", "drill.depth", "vibration.D", or "drill" itself)."""
 
 
 @dataclass(frozen=True)
@@ -21,6 +29,9 @@ class DrillCycle:
     below R. servo_period: the bridge's period, for the drive model the timing uses.
     compensate_xy: pre-compensate the overlapped cycle's X/Y commands with the drive
     model, so that the X/Y feedback is in position when the ruckig move ends.
+
+    Its own checks raise a plain ValueError: the job's drill block is checked before a
+    cycle is built (block.py), so a cycle that fails them is the planner's mistake.
     """
 
     holes: list[tuple[float, float]]

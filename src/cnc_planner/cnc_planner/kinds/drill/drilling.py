@@ -11,7 +11,6 @@ retract laws for them, and optionally lowers each air arc's acceleration (air.py
 from __future__ import annotations
 
 import math
-import re
 
 import numpy as np
 
@@ -97,17 +96,11 @@ def plan_drilling(builder: PlanBuilder, cycle: DrillCycle) -> list[dict]:
 
 
 def plan_cycle(builder: PlanBuilder, cycle: DrillCycle) -> None:
+    """plan_drilling for a job: what this machine cannot drill is refused naming the job's
+    field (DrillError, or the vibration's JobError)."""
     try:
         plan_drilling(builder, cycle)
     except JobError:
         raise  # names its field already
-    except ValueError as err:  # one line: ruckig appends its whole input to its errors
-        first = (str(err).splitlines() or [""])[0]
-        name, sep, reason = first.partition(": ")
-        if sep and re.fullmatch(r"(holes(\[\d+\])?|feed|mode)", name):  # a field of the drill block
-            raise JobError(f"drill.{name}", reason) from err
-        if sep and name.startswith("vibration"):
-            raise JobError(name, reason) from err
-        if sep and name == "length":  # a vibrated stroke too short to ramp onto the waveform
-            raise JobError("drill.depth", reason) from err
-        raise JobError("drill", first) from err
+    except ValueError as err:  # ruckig's own, in one line: it appends its whole input to its errors
+        raise JobError("drill", (str(err).splitlines() or [""])[0]) from err

@@ -12,7 +12,7 @@ from cnc_msgs_py.machine import Machine
 from cnc_servo_bridge.drive import DriveModel
 
 from cnc_planner.kinds.drill.bottom import Bottoms, reference
-from cnc_planner.kinds.drill.cycle import DrillCycle
+from cnc_planner.kinds.drill.cycle import DrillCycle, DrillError
 from cnc_planner.kinds.drill.z_axis import ZAxis, z_move, z_samples, z_state
 from cnc_planner.motion.builder import PlanBuilder
 from cnc_planner.motion.compensation import compensation_band, learned_command
@@ -149,7 +149,7 @@ class Dwells:
                 continue
             turn -= error
             if not self.machine.axes["z"].within_travel(turn):
-                raise ValueError(f"bottom_z: the drive needs a command at {turn} m, outside the Z travel")
+                raise DrillError("drill", f"bottom_z: the drive needs a command at {turn} m, outside the Z travel")
         return best
 
     def stroke(self, builder: PlanBuilder, t: float, hole: int) -> float:

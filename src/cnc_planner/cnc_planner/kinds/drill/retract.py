@@ -16,7 +16,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from cnc_planner.kinds.drill.cycle import RETURN_CLEARANCE
+from cnc_planner.kinds.drill.cycle import RETURN_CLEARANCE, DrillError
 from cnc_planner.kinds.drill.z_axis import ZAxis, crossing, z_move, z_state
 from cnc_planner.motion.moves import Limits, RuckigMove
 
@@ -110,7 +110,7 @@ class RetractLaw:
             if fast.mode != forced:
                 reason = ("too shallow to reach rapid below R" if forced == 1
                           else "deep enough to reach rapid below R (mode 1)")
-                raise ValueError(f"mode: {forced} is impossible here, the hole is {reason}")
+                raise DrillError("drill.mode", f"{forced} is impossible here, the hole is {reason}")
             return fast
         slow = self._best_slow_exit(air_needed, bottom, plane)
         if forced == 3 or self.cost(slow, air_needed) < self.cost(fast, air_needed) - 1e-6:

@@ -15,10 +15,9 @@ from typing import Callable
 import numpy as np
 
 from cnc_msgs_py.machine import Machine
-from cnc_msgs_py.schema import JobError
 from cnc_servo_bridge.drive import DriveModel
 
-from cnc_planner.kinds.drill.cycle import DrillCycle
+from cnc_planner.kinds.drill.cycle import DrillCycle, DrillError
 from cnc_planner.kinds.drill.z_axis import ZAxis
 from cnc_planner.motion.builder import PlanBuilder
 from cnc_planner.motion.plan_check import BLOCK_S
@@ -120,11 +119,11 @@ class ServoLag:
             e_down, e_up = new_down, new_up
         if rounds > 1:
             drive = self.machine.drives["z"]
-            raise JobError("drill.overlap" if self.cycle.overlap else "drill",
-                           f"no timing found in {rounds} drive-model rounds that keeps X/Y on the hole while "
-                           f"the tip is below R against the servo lag (z: kp {drive.kp:g}/s, velocity_lag "
-                           f"{drive.velocity_lag * 1e3:.3g} ms)" + ("; overlap: off drills conventionally"
-                                                                    if self.cycle.overlap else ""))
+            raise DrillError("drill.overlap" if self.cycle.overlap else "drill",
+                             f"no timing found in {rounds} drive-model rounds that keeps X/Y on the hole while "
+                             f"the tip is below R against the servo lag (z: kp {drive.kp:g}/s, velocity_lag "
+                             f"{drive.velocity_lag * 1e3:.3g} ms)" + ("; overlap: off drills conventionally"
+                                                                      if self.cycle.overlap else ""))
         return e_down, e_up
 
     def margins(self, emit: Emit, t0: float, e_down: np.ndarray, e_up: np.ndarray,

@@ -19,13 +19,14 @@ from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_servo_bridge.drive import DriveModel
 
 from cnc_planner.kinds.drill.bottom import Bottoms
-from cnc_planner.kinds.drill.cycle import DrillCycle
+from cnc_planner.kinds.drill.cycle import DrillCycle, DrillError
 from cnc_planner.kinds.drill.dwell import Dwells
 from cnc_planner.kinds.drill.peck import peck_moves
 from cnc_planner.kinds.drill.z_axis import ZAxis, add_z, z_move
 from cnc_planner.motion.builder import PlanBuilder
 from cnc_planner.motion.timeline import Piece
-from cnc_planner.vibration.waveform import VibrationFeed
+from cnc_planner.vibration.feed import vibration_error
+from cnc_planner.vibration.waveform import VibrationError, VibrationFeed
 
 
 class Strokes:
@@ -81,10 +82,14 @@ class Strokes:
         key = (round(top - bottom, 12), round(math.fmod(angle, 2 * math.pi), 9))
         if key not in self._vibrated:
             z = self.machine.axes["z"]
-            self._vibrated[key] = VibrationFeed(
-                top - bottom, c.feed * 2 * math.pi / c.spindle_speed, c.vibration, c.spindle_speed, z,
-                start_angle=angle, servo_period=c.servo_period,
-                drive_model_factory=lambda: DriveModel(self.machine, c.servo_period, ("z",)))
+            try:
+                self._vibrated[key] = VibrationFeed(
+                    top - bottom, c.feed * 2 * math.pi / c.spindle_speed, c.vibration, c.spindle_speed, z,
+                    start_angle=angle, servo_period=c.servo_period,
+                    drive_model_factory=lambda: DriveModel(self.machine, c.servo_period, ("z",)))
+            except VibrationError as err:
+                named = vibration_error(err)  # a vibration.X field, or the stroke's length: the depth
+                raise (DrillError("drill.depth", named.reason) if named.field == "length" else named) from err
         move = self._vibrated[key]
 
         def sample(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -28,7 +28,7 @@ import numpy as np
 from cnc_msgs_py.machine import Machine
 from cnc_servo_bridge.drive import DriveModel
 
-from cnc_planner.kinds.drill.cycle import DrillCycle
+from cnc_planner.kinds.drill.cycle import DrillCycle, DrillError
 from cnc_planner.motion.compensation import COMPENSATION_TAIL, learned_command
 from cnc_planner.motion.moves import Limits, RuckigMove, axis_limits, point_to_point
 
@@ -76,7 +76,7 @@ def s1_moves(machine: Machine, cycle: DrillCycle, start: dict[str, float]) -> li
     for i, hole in enumerate(cycle.holes):
         for axis, value in zip(XY, hole):
             if not machine.axes[axis].within_travel(value):
-                raise ValueError(f"holes[{i}]: {axis} = {value} m is outside the travel")
+                raise DrillError(f"drill.holes[{i}]", f"{axis} = {value} m is outside the travel")
         moved = _moved_axes(position, hole)
         if moved and cycle.overlap and cycle.compensate_xy:
             # The drive is linear up to its encoder counts: one correction per displacement.

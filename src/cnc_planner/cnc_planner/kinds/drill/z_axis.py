@@ -15,7 +15,7 @@ from ruckig import ControlInterface, InputParameter
 
 from cnc_msgs_py.machine import Machine
 
-from cnc_planner.kinds.drill.cycle import DrillCycle
+from cnc_planner.kinds.drill.cycle import DrillCycle, DrillError
 from cnc_planner.motion.builder import PlanBuilder
 from cnc_planner.motion.moves import Limits, RuckigMove, axis_limits, calculate
 from cnc_planner.motion.timeline import Piece
@@ -84,12 +84,12 @@ class ZAxis:
         self.feed = cycle.feed
         self.entry = cycle.entry_velocity
         if cycle.feed > self.rapid.velocity:
-            raise ValueError(f"feed: {cycle.feed} m/s exceeds the Z rapid {self.rapid.velocity} m/s")
+            raise DrillError("drill.feed", f"{cycle.feed} m/s exceeds the Z rapid {self.rapid.velocity} m/s")
         for name, lo in (("bottom_z", cycle.bottom_z), ("start z", start_z)):
             if not machine.axes["z"].within_travel(lo):
-                raise ValueError(f"{name}: {lo} m is outside the Z travel")
+                raise DrillError("drill", f"{name}: {lo} m is outside the Z travel")
         if start_z < cycle.r_z:
-            raise ValueError("the tool must start above the R plane")
+            raise DrillError("drill", "the tool must start above the R plane")
         self._strokes: dict[tuple[float, float], RuckigMove] = {}
 
     def stroke(self, top: float, turn: float) -> RuckigMove:

@@ -21,7 +21,9 @@ sys.path[:0] = [str(ROOT / "src" / p) for p in ("cnc_msgs_py", "cnc_analysis", "
 from cnc_msgs_py.job import parse_job  # noqa: E402
 from cnc_msgs_py.machine import load_machine  # noqa: E402
 from cnc_planner.motion.builder import PlanBuilder  # noqa: E402
-from cnc_planner.kinds.drill.drilling import DrillCycle, lower_bound_time, plan_drilling  # noqa: E402
+from cnc_planner.kinds.drill.bound import lower_bound_time  # noqa: E402
+from cnc_planner.kinds.drill.cycle import DrillCycle  # noqa: E402
+from cnc_planner.kinds.drill.drilling import plan_drilling  # noqa: E402
 from cnc_planner.planning import plan_job  # noqa: E402
 from cnc_planner.kinds.drill.block import drill_cycle  # noqa: E402
 from cnc_planner.kinematics import Kinematics  # noqa: E402

@@ -39,7 +39,7 @@ import numpy as np  # noqa: E402
 
 from cnc_msgs_py.job import parse_job  # noqa: E402
 from cnc_msgs_py.machine import load_machine  # noqa: E402
-from cnc_planner.kinds.drill.drilling import lower_bound_time  # noqa: E402
+from cnc_planner.kinds.drill.bound import lower_bound_time  # noqa: E402
 from cnc_planner.kinds.drill.block import drill_cycle  # noqa: E402
 from cnc_planner.kinematics import Kinematics  # noqa: E402
 

@@ -6,7 +6,9 @@ import pytest
 
 from cnc_msgs_py.machine import load_machine
 from cnc_planner.motion.builder import PlanBuilder
-from cnc_planner.kinds.drill.drilling import DrillCycle, lower_bound_time, plan_drilling
+from cnc_planner.kinds.drill.bound import lower_bound_time
+from cnc_planner.kinds.drill.cycle import DrillCycle
+from cnc_planner.kinds.drill.drilling import plan_drilling
 from cnc_analysis.drilling import analyze_drilling
 from cnc_servo_bridge.drive import DriveModel
 from cnc_servo_bridge.setpoints import SetpointBuffer

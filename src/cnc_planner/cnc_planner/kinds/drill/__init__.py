@@ -13,8 +13,8 @@ from cnc_planner.motion.builder import PlanBuilder
 from cnc_planner.motion.settle import settle_time
 
 from .block import drill_cycle
-from .drilling import DrillCycle
 from . import page
+from .cycle import DrillCycle
 from .figures import CAPTIONS, draw, first_hole_aircut
 from .planning import plan_drill
 from .report import drill_section

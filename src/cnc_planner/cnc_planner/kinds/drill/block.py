@@ -10,7 +10,7 @@ from cnc_msgs_py.units import to_mm, to_mm_per_min
 
 from cnc_planner.kinematics import Kinematics
 from cnc_planner.kinds.drill.clamps import OBSTACLE_MARGIN, crossed, under_tool
-from cnc_planner.kinds.drill.drilling import RETURN_CLEARANCE, DrillCycle
+from cnc_planner.kinds.drill.cycle import RETURN_CLEARANCE, DrillCycle
 from cnc_planner.kinds.drill.hole_order import shortest_order
 from cnc_planner.kinds.drill.peck import peck_of, xy_plane
 from cnc_planner.kinds.drill.tilted import tilted, tilted_frame

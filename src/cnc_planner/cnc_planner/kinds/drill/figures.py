@@ -2,7 +2,7 @@
 S1/S2/S3 timing per hole on feedback."""
 from __future__ import annotations
 
-from cnc_planner.kinds.drill.drilling import DrillCycle
+from cnc_planner.kinds.drill.cycle import DrillCycle
 from cnc_planner.kinematics import Kinematics
 from matplotlib.patches import Rectangle
 from cnc_planner.kinds.drill.block import drill_cycle

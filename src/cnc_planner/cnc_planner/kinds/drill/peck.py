@@ -69,7 +69,7 @@ def peck_moves(z_move: ZMove, peck: Peck, feed: float, top: float, v0: float,
                surface: float, bottom: float, turn: float | None = None) -> list[PeckMove]:
     """The Z moves of one hole from R (``top``, moving at ``v0``) to rest at its bottom; the
     last feed's command turns at ``turn`` (where the drive's feedback turns at the bottom,
-    drilling._Job.turning_point), at the bottom if not given."""
+    bottom.Bottoms.turning_point), at the bottom if not given."""
     moves: list[PeckMove] = []
     state = (top, v0, 0.0)
     previous = None

@@ -1,0 +1,134 @@
+"""Timing the cycle against servo lag: the gaps that keep X/Y on the hole, on feedback,
+whenever the tip is below R.
+
+X/Y feedback settles some tens of ms after its command ends, Z feedback trails its command.
+The planner runs the bridge's drive model on its own commands and moves the Z descent /
+the next X/Y start by whole servo periods until the feedback never shows the tip below R
+with X/Y off the hole; both gaps start at the smallest value that keeps the commands
+themselves safe (their floors), so the cycle loses only what the feedback demands.
+"""
+from __future__ import annotations
+
+import math
+from typing import Callable
+
+import numpy as np
+
+from cnc_msgs_py.machine import Machine
+from cnc_servo_bridge.drive import DriveModel
+
+from cnc_planner.kinds.drill.cycle import DrillCycle, DrillError
+from cnc_planner.kinds.drill.z_axis import ZAxis
+from cnc_planner.motion.builder import PlanBuilder
+from cnc_planner.motion.plan_check import BLOCK_S
+from cnc_planner.motion.timeline import Plan
+
+SAFETY_ROUNDS = 40  # drive-model rounds before giving up on a safe timing
+
+# A cycle written into a builder for given gaps (e_down, e_up) and air accelerations
+# (overlap.py, conventional.py); the last argument asks for each air move's energy.
+Emit = Callable[[PlanBuilder, float, np.ndarray, np.ndarray, np.ndarray, bool], list[dict]]
+
+
+def _feedback(machine: Machine, plan: Plan, ts: np.ndarray, period: float) -> np.ndarray:
+    """X/Y/Z feedback (len(ts), 3) of the drives from rest at the plan's position at ts[0],
+    the plan sampled and simulated BLOCK_S at a time (the same values as in one piece,
+    without the whole cycle's setpoints in memory)."""
+    drives = DriveModel(machine, period, ("x", "y", "z"))
+    out = np.empty((len(ts), 3))
+    block = max(2, int(BLOCK_S / period))
+    for lo in range(0, len(ts), block):
+        p, v, a = plan.sample(ts[lo:lo + block], ("x", "y", "z"))
+        if lo == 0:
+            drives.reset(p[0])
+        out[lo:lo + block] = drives.run(p, v, a)[0]
+    return out
+
+
+class ServoLag:
+    """The drive model's verdict on a cycle planned from ``start``: its lag margins, and
+    the gaps that leave none."""
+
+    def __init__(self, machine: Machine, cycle: DrillCycle, start: dict[str, float], z: ZAxis):
+        self.machine = machine
+        self.cycle = cycle
+        self.start = start
+        self.z = z
+        self.n = len(cycle.holes)
+
+    def lag_margins(self, plan: Plan, infos: list[dict], t0: float) -> tuple[np.ndarray, np.ndarray]:
+        """Per hole, in servo periods, from the drive model's feedback: how late X/Y settles
+        after the tip went below the plane of the move into the hole (down) and how early X/Y
+        leaves before the tip is back above the plane of the move out of it (up). Positive =
+        unsafe by that many samples, negative = slack."""
+        c = self.cycle
+        period = c.servo_period
+        k0 = math.floor(t0 / period + 1e-9)
+        ts = (k0 + np.arange(math.ceil((plan.duration - t0) / period) + 50)) * period
+        fb = _feedback(self.machine, plan, ts, period)
+        z = fb[:, 2]
+        starts = np.searchsorted(ts, [info["s1"] for info in infos] + [ts[-1] + 1.0, ts[-1] + 1.0])
+        down = np.zeros(self.n)
+        up = np.zeros(self.n)
+        ku = 0
+        for i, info in enumerate(infos):
+            # S1 may start a few periods before the previous hole's tip is out: skip that.
+            # X/Y moves into the hole above one plane and out of it above the next's.
+            lo, hi = max(starts[i], ku), starts[i + 2]
+            into, out = c.air_plane(i), c.air_plane(i + 1)
+            low = z[lo:hi] < min(into, out)  # one visit below both planes (pecks stay below R)
+            if not low.any():
+                continue
+            kv = lo + int(np.argmax(low))
+            kw = hi if low[kv - lo:].all() else kv + int(np.argmin(low[kv - lo:]))
+            kb = kv + int(np.argmin(z[kv:kw]))  # the hole's bottom
+            kd = lo + int(np.argmax(z[lo:hi] < into))
+            ku = kb + int(np.argmin(z[kb:hi] < out))
+            ku = hi if z[ku] < out else ku
+            # Off-hole samples before the hole's bottom are a late arrival, after it an early exit.
+            far = np.hypot(fb[lo:hi, 0] - info["x"], fb[lo:hi, 1] - info["y"]) > c.xy_tolerance
+            before = np.nonzero(far[: kb - lo])[0]
+            after = np.nonzero(far[kb - lo:])[0]
+            down[i] = (lo + before[-1] + 1 if len(before) else lo) - kd
+            up[i] = ku - (kb + after[0] if len(after) else hi)
+        return down, up
+
+    def safe_gaps(self, emit: Emit, t0: float, e_down: np.ndarray, e_up: np.ndarray,
+                  floor_down: np.ndarray, floor_up: np.ndarray, rounds: int = SAFETY_ROUNDS
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """Move each gap by whole servo periods until the feedback is safe with no slack left.
+
+        With rounds=1 it returns after one correction, to learn the lag margins. A gap that
+        once had to grow is never shrunk again, so the search cannot oscillate; no gap goes
+        below its floor, where the commands themselves stop being safe.
+        """
+        period = self.cycle.servo_period
+        full = np.full(self.n, self.z.rapid.acceleration)
+        grew_down = np.zeros(self.n, bool)
+        grew_up = np.zeros(self.n, bool)
+        for _ in range(rounds):
+            down, up = self.margins(emit, t0, e_down, e_up, full)
+            up = np.roll(up, 1)  # hole i's exit constrains the start of S1 for hole i+1
+            up[0] = 0.0
+            grew_down |= down > 0
+            grew_up |= up > 0
+            new_down = np.where(grew_down & (down <= 0), e_down, np.maximum(e_down + down * period, floor_down))
+            new_up = np.where(grew_up & (up <= 0), e_up, np.maximum(e_up + up * period, floor_up))
+            if np.all(down <= 0) and np.all(up <= 0) and np.allclose(new_down, e_down) and np.allclose(new_up, e_up):
+                return e_down, e_up
+            e_down, e_up = new_down, new_up
+        if rounds > 1:
+            drive = self.machine.drives["z"]
+            raise DrillError("drill.overlap" if self.cycle.overlap else "drill",
+                             f"no timing found in {rounds} drive-model rounds that keeps X/Y on the hole while "
+                             f"the tip is below R against the servo lag (z: kp {drive.kp:g}/s, velocity_lag "
+                             f"{drive.velocity_lag * 1e3:.3g} ms)" + ("; overlap: off drills conventionally"
+                                                                      if self.cycle.overlap else ""))
+        return e_down, e_up
+
+    def margins(self, emit: Emit, t0: float, e_down: np.ndarray, e_up: np.ndarray,
+                accel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Plan the cycle on a scratch builder and measure its lag margins on feedback."""
+        builder = PlanBuilder(self.machine, self.start)
+        infos = emit(builder, t0, e_down, e_up, accel, False)
+        return self.lag_margins(builder.build(), infos, t0)

@@ -26,7 +26,7 @@ def drill_job(machine: str, setup: dict, holes=HOLES, depth: float = 5.0) -> obj
 
 
 BOTTOM_COMPENSATION = 3e-5  # m: the Z command turns this close to the depth, so that the
-# drive's feedback turns at it (drilling.py; the feedback is checked over topics)
+# drive's feedback turns at it (kinds/drill/bottom.py; the feedback is checked over topics)
 
 
 def bottoms(plan, joints=("x", "y", "z")) -> np.ndarray:
@@ -98,7 +98,7 @@ def test_tilted_setup_drills_tilted_holes(layout):
     cols = [plan.joints.index(j) for j in joints]
     fb, _ = DriveModel(machine, PERIOD, tuple(joints)).simulate(p[:, cols], v[:, cols], a[:, cols])
     cycle = ts >= first_s1
-    # (Only the feedback: the X/Y commands are pre-compensated, see drilling.py.)
+    # (Only the feedback: the X/Y commands are pre-compensated, see kinds/drill/xy_moves.py.)
     for q in (fb[cycle],):
         tip, tool = kin.fk_many(dict(zip(joints, q.T)))
         assert np.allclose(tool, [0.0, 0.0, 1.0], atol=1e-6)

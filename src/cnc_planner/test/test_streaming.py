@@ -501,7 +501,7 @@ def test_the_executive_streams_a_long_job_and_reports_holes_and_progress():
     assert progress == sorted(progress) and progress[-1] > 0.95
     assert running[-1].detail["S3"] >= SEGMENT_HOLES + 9
     _, p, _, _ = stitched(chunks)
-    dt = MS / NS  # within velocity and acceleration (the X/Y compensation may exceed the jerk, see drilling.py)
+    dt = MS / NS  # within velocity and acceleration (the X/Y compensation may exceed the jerk, see kinds/drill/xy_moves.py)
     for k, joint in enumerate(MILL.joint_names):
         assert np.abs(np.diff(p[:, k])).max() / dt <= MILL.axes[joint].max_velocity * (1 + 1e-6), joint
         assert np.abs(np.diff(p[:, k], 2)).max() / dt**2 <= MILL.axes[joint].max_acceleration * (1 + 1e-6), joint

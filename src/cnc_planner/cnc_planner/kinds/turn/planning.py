@@ -8,7 +8,8 @@ from cnc_msgs_py.machine import Machine
 from cnc_msgs_py.schema import JobError
 
 from cnc_planner.kinematics import Kinematics
-from cnc_planner.kinds.turn.roughing import TurningError, check_outlines, plan_roughing
+from cnc_planner.kinds.turn.outline import TurningError, check_outlines
+from cnc_planner.kinds.turn.roughing import plan_roughing
 from cnc_planner.motion.builder import PlanBuilder
 from cnc_planner.travel import check_travel, to_axes
 from cnc_planner.vibration.feed import feed_move, vibration_of

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from cnc_msgs_py.outline import ArcError, arc_points
+from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.units import mm
 from cnc_planner.kinds.turn.judge import material_left, max_gouge
 from cnc_planner.kinds.turn.moves import RoughingPlan
@@ -295,8 +296,12 @@ def test_origin_whose_straight_move_would_cut_the_cone_is_rejected():
         plan_roughing(**args)
 
 
-def test_turning_error_is_a_value_error():
-    assert issubclass(TurningError, ValueError)
+def test_turning_error_is_a_job_error_that_names_the_field():
+    args = {**roughing_args("cylinder"), "clearance": -mm(1.0)}
+    with pytest.raises(JobError) as err:
+        plan_roughing(**args)
+    assert isinstance(err.value, TurningError)
+    assert (err.value.field, err.value.reason) == ("turn.clearance", "must be a positive length (got -1.0 mm)")
 
 
 # --- arcs -------------------------------------------------------------------------------------

@@ -16,13 +16,14 @@ import math
 
 import numpy as np
 
+from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.units import to_mm
 
 from cnc_planner.kinds.turn.stock import EPS, HeightField, Point
 
 
-class TurningError(ValueError):
-    """Bad turning input; the message is one line starting with the job field, in mm."""
+class TurningError(JobError):
+    """Bad turning input: the job field (``turn.profile``, ...) and a one-line reason in mm."""
 
 
 def mm_text(value_m: float) -> str:
@@ -33,25 +34,25 @@ def mm_text(value_m: float) -> str:
 
 def _check_outline(field: str, points: list[Point]) -> None:
     if len(points) < 2:
-        raise TurningError(f"{field}: needs at least 2 points (got {len(points)})")
+        raise TurningError(field, f"needs at least 2 points (got {len(points)})")
     for i, p in enumerate(points):
         if len(p) != 2 or not all(math.isfinite(v) for v in p):
-            raise TurningError(f"{field}: point {i} is not a finite [z, radius] pair")
+            raise TurningError(field, f"point {i} is not a finite [z, radius] pair")
         if p[1] < 0.0:
-            raise TurningError(f"{field}: radius must not be negative (point {i})")
+            raise TurningError(field, f"radius must not be negative (point {i})")
         if i == 0:
             continue
         if p[0] > points[i - 1][0]:
-            raise TurningError(f"{field}: z must decrease from right to left (point {i})")
+            raise TurningError(field, f"z must decrease from right to left (point {i})")
         if tuple(p) == tuple(points[i - 1]):
-            raise TurningError(f"{field}: point {i} repeats point {i - 1}")
+            raise TurningError(field, f"point {i} repeats point {i - 1}")
     # With z never increasing, the outline can only cross itself by turning back on a shoulder.
     for i in range(1, len(points) - 1):
         (z0, r0), (z1, r1), (z2, r2) = points[i - 1], points[i], points[i + 1]
         if z0 == z1 == z2 and (r1 - r0) * (r2 - r1) < 0.0:
-            raise TurningError(f"{field}: self-intersects at segment {i} (turns back at z={mm_text(z1)} mm)")
+            raise TurningError(field, f"self-intersects at segment {i} (turns back at z={mm_text(z1)} mm)")
     if points[0][0] == points[-1][0]:
-        raise TurningError(f"{field}: must span a length along z")
+        raise TurningError(field, "must span a length along z")
 
 
 def check_outlines(stock: list[Point], profile: list[Point]) -> None:
@@ -63,7 +64,8 @@ def check_outlines(stock: list[Point], profile: list[Point]) -> None:
     for z in (p_right, p_left):
         if not s_left - EPS <= z <= s_right + EPS:
             raise TurningError(
-                f"turn.profile: lies outside the stock at z={mm_text(z)} mm "
+                "turn.profile",
+                f"lies outside the stock at z={mm_text(z)} mm "
                 f"(the stock spans z={mm_text(s_right)}..{mm_text(s_left)} mm)"
             )
     s_field, p_field = HeightField.from_outline(stock), HeightField.from_outline(profile)
@@ -72,7 +74,7 @@ def check_outlines(stock: list[Point], profile: list[Point]) -> None:
         for z, side in ((hi, 0), (lo, 1)):  # each value from inside (lo, hi)
             p = p_field.limits(z)[side][0]
             if p > s_field.limits(z)[side][0] + EPS:
-                raise TurningError(f"turn.profile: lies outside the stock at z={mm_text(z)} mm")
+                raise TurningError("turn.profile", f"lies outside the stock at z={mm_text(z)} mm")
 
 
 def _envelope(pieces: list[tuple[float, float, float, float]], lo: float, hi: float) -> list[tuple[float, ...]]:

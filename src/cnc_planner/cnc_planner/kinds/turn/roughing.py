@@ -74,22 +74,24 @@ def _check_parameters(stock: list[Point], profile: list[Point], depth_of_cut: fl
                       origin: Point, finish_allowance: float) -> None:
     for field, value in (("depth_of_cut", depth_of_cut), ("clearance", clearance)):
         if not (math.isfinite(value) and value > 0.0):
-            raise TurningError(f"turn.{field}: must be a positive length (got {mm_text(value)} mm)")
+            raise TurningError(f"turn.{field}", f"must be a positive length (got {mm_text(value)} mm)")
     if not (math.isfinite(finish_allowance) and finish_allowance >= 0.0):
-        raise TurningError(f"turn.finish_allowance: must not be negative (got {mm_text(finish_allowance)} mm)")
+        raise TurningError("turn.finish_allowance", f"must not be negative (got {mm_text(finish_allowance)} mm)")
     if len(origin) != 2 or not all(math.isfinite(v) for v in origin):
-        raise TurningError("turn.origin: must be a finite [z, radius] pair")
+        raise TurningError("turn.origin", "must be a finite [z, radius] pair")
     span = max(r for _, r in stock) - min(r for _, r in profile)
     if span / depth_of_cut > MAX_PASSES:
         raise TurningError(
-            f"turn.depth_of_cut: {mm_text(depth_of_cut)} mm takes {span / depth_of_cut:.4g} passes over "
+            "turn.depth_of_cut",
+            f"{mm_text(depth_of_cut)} mm takes {span / depth_of_cut:.4g} passes over "
             f"{mm_text(span)} mm of stock, more than the maximum {MAX_PASSES}; need >= {mm_text(span / MAX_PASSES)} mm"
         )
     top = max(max(r for _, r in stock), max(r for _, r in profile) + finish_allowance)
     right = max(stock[0][0], profile[0][0])
     if not (origin[1] > top or origin[0] > right):
         raise TurningError(
-            f"turn.origin: must lie above the stock (x > {mm_text(top)} mm) or right of it "
+            "turn.origin",
+            f"must lie above the stock (x > {mm_text(top)} mm) or right of it "
             f"(z > {mm_text(right)} mm)"
         )
 
@@ -215,7 +217,8 @@ class _Cycle:
             return
         if self.straight_lift(start, self.origin) > start[1] + TOUCH:
             raise TurningError(
-                f"turn.origin: the straight move to the first pass start (z={mm_text(start[0])}, "
+                "turn.origin",
+                f"the straight move to the first pass start (z={mm_text(start[0])}, "
                 f"x={mm_text(start[1])} mm) would cut the stock"
             )
         self.move("rapid", start, False)
@@ -265,7 +268,7 @@ def _plan(stock: list[Point], profile: list[Point], depth_of_cut: float, clearan
     check_outlines(stock, profile)
     _check_parameters(stock, profile, depth_of_cut, clearance, origin, finish_allowance)
     if not (math.isfinite(finish_allowance_z) and finish_allowance_z >= 0.0):
-        raise TurningError(f"turn.finish_allowance_z: must not be negative (got {mm_text(finish_allowance_z)} mm)")
+        raise TurningError("turn.finish_allowance_z", f"must not be negative (got {mm_text(finish_allowance_z)} mm)")
     stock = [(float(z), float(r)) for z, r in stock]
     profile = [(float(z), float(r)) for z, r in profile]
     origin = (float(origin[0]), float(origin[1]))

@@ -1,6 +1,6 @@
 """How much air feed the short-air-move roughing saves against passes started at the virtual cylinder.
 
-For every example stock in cnc_planner.turning_examples: passes, air feed and path length
+For every example stock in cnc_planner.kinds.turn.examples: passes, air feed and path length
 of plan_roughing against plan_naive. Prints the table, writes it to
 bench/results/turning_air.txt and draws stock, profile and pass pattern of each example
 to bench/results/turning_passes.png.

@@ -4,7 +4,7 @@ Only the project's analysis code judges: cnc_analysis.drilling.analyze_drilling
 (cycle time, safety violations = samples with the tip below R while X/Y is off the
 hole), cnc_analysis.summary.cycle_time (first to last axis motion),
 cnc_analysis.threads.analyze_thread (passes, longest chip) and
-cnc_planner.turning.StockModel (which feed travel touches material). The inputs are
+cnc_planner.kinds.turn.stock.StockModel (which feed travel touches material). The inputs are
 sampled positions every 1 ms, SI units.
 
 LinuxCNC's sim loops each joint's command straight back as its feedback (an ideal
@@ -22,7 +22,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from cnc_msgs_py.machine import Machine
-from cnc_planner.kinds.turn.roughing import StockModel
+from cnc_planner.kinds.turn.stock import StockModel
 from cnc_analysis import summary
 from cnc_analysis.drilling import analyze_drilling
 from cnc_servo_bridge.drive import DriveModel
@@ -104,9 +104,9 @@ def turning_air(t: np.ndarray, axes: dict[str, np.ndarray], stock_mm: list, feed
 
     The path (z, x) is cut into straight pieces (Douglas-Peucker, 1 um, and wherever the
     speed crosses FEED_MARGIN x the programmed feed); a piece is feed travel when its
-    speed stays below that, rapid otherwise. The pieces are replayed in order against cnc_planner.turning.StockModel
-    of the job's stock (the tool sweeps away all material above its tip), which says
-    how long each piece touched material. Lengths in mm.
+    speed stays below that, rapid otherwise. The pieces are replayed in order against
+    cnc_planner.kinds.turn.stock.StockModel of the job's stock (the tool sweeps away all
+    material above its tip), which says how long each piece touched material. Lengths in mm.
     """
     zx = np.stack([axes["z"], axes["x"]], axis=1)
     speed = np.hypot(*np.gradient(zx, PERIOD, axis=0).T)

@@ -7,19 +7,14 @@ import re
 import numpy as np
 import pytest
 
+from cnc_msgs_py.outline import ArcError, arc_points
+from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.units import mm
-from cnc_planner.kinds.turn.roughing import (
-    RoughingPlan,
-    StockModel,
-    TurningError,
-    arc_points,
-    check_outlines,
-    material_left,
-    max_gouge,
-    offset_outline,
-    plan_naive,
-    plan_roughing,
-)
+from cnc_planner.kinds.turn.judge import material_left, max_gouge
+from cnc_planner.kinds.turn.moves import RoughingPlan
+from cnc_planner.kinds.turn.outline import TurningError, check_outlines, offset_outline
+from cnc_planner.kinds.turn.roughing import plan_naive, plan_roughing
+from cnc_planner.kinds.turn.stock import StockModel
 from cnc_planner.kinds.turn.examples import EXAMPLES, roughing_args
 
 NAMES = list(EXAMPLES)
@@ -301,8 +296,12 @@ def test_origin_whose_straight_move_would_cut_the_cone_is_rejected():
         plan_roughing(**args)
 
 
-def test_turning_error_is_a_value_error():
-    assert issubclass(TurningError, ValueError)
+def test_turning_error_is_a_job_error_that_names_the_field():
+    args = {**roughing_args("cylinder"), "clearance": -mm(1.0)}
+    with pytest.raises(JobError) as err:
+        plan_roughing(**args)
+    assert isinstance(err.value, TurningError)
+    assert (err.value.field, err.value.reason) == ("turn.clearance", "must be a positive length (got -1.0 mm)")
 
 
 # --- arcs -------------------------------------------------------------------------------------
@@ -336,7 +335,7 @@ def test_arc_sign_positive_is_convex():
 
 def test_arc_by_center_and_half_circle():
     start, end, center = (mm(-10.0), mm(10.0)), (mm(-20.0), mm(10.0)), (mm(-15.0), mm(10.0))
-    with pytest.raises(TurningError, match="half circle"):
+    with pytest.raises(ArcError, match="half circle"):
         arc_points(start, end, center=center)
     bump = np.array(arc_points(start, end, center=center, radius=mm(5.0)))
     groove = np.array(arc_points(start, end, center=center, radius=-mm(5.0)))
@@ -348,7 +347,7 @@ def test_arc_by_center_and_half_circle():
 
 
 def test_bad_arcs():
-    with pytest.raises(TurningError, match="not equally far"):
+    with pytest.raises(ArcError, match="not equally far"):
         arc_points((0.0, 0.01), (-0.01, 0.02), center=(0.0, 0.0))
-    with pytest.raises(TurningError, match="shorter than half the chord"):
+    with pytest.raises(ArcError, match="shorter than half the chord"):
         arc_points((0.0, 0.01), (-0.01, 0.02), radius=0.001)

@@ -3,7 +3,7 @@ moves told from air moves."""
 from __future__ import annotations
 
 from cnc_planner.kinematics import Kinematics
-from cnc_planner.kinds.turn.roughing import offset_outline
+from cnc_planner.kinds.turn.outline import offset_outline
 from cnc_planner.kinds.turn.roughing import plan_roughing
 
 from types import SimpleNamespace

@@ -5,27 +5,24 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 from cnc_msgs_py.machine import Machine
-from cnc_msgs_py.schema import JobError
 
 from cnc_planner.kinematics import Kinematics
-from cnc_planner.kinds.turn.roughing import TurningError, check_outlines, plan_roughing
+from cnc_planner.kinds.turn.roughing import plan_roughing
 from cnc_planner.motion.builder import PlanBuilder
 from cnc_planner.travel import check_travel, to_axes
 from cnc_planner.vibration.feed import feed_move, vibration_of
 
 
 def plan_turn(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin: Kinematics) -> None:
-    """Roughing with short air moves: passes start where the stock really is."""
+    """Roughing with short air moves: passes start where the stock really is.
+
+    Bad outlines or cycle parameters raise TurningError, a JobError that names the turn field.
+    """
     t = job.turn
     stock = [tuple(p) for p in t.stock]
     profile = [tuple(p) for p in t.profile]
-    try:
-        check_outlines(stock, profile)
-        rough = plan_roughing(stock, profile, t.depth_of_cut, t.clearance, tuple(t.origin),
-                              t.finish_allowance, t.finishing_pass, t.finish_allowance_z)
-    except TurningError as err:
-        field, _, reason = str(err).partition(": ")
-        raise JobError(field, reason) from err
+    rough = plan_roughing(stock, profile, t.depth_of_cut, t.clearance, tuple(t.origin),
+                          t.finish_allowance, t.finishing_pass, t.finish_allowance_z)
     def axes_of(z: float, r: float, field: str = "turn.profile") -> dict[str, float]:
         return to_axes(kin, {"x": r, "z": z}, field)
     origin = axes_of(*t.origin, "turn.origin")

@@ -19,295 +19,24 @@ against a falling section the tool cannot come in along z: it comes down onto th
 at the section (a plunge at feed) and then cuts along the pass line. The crossings are
 found per linear piece of the profile, which gives the same stretches as per section.
 
-The finishing allowance has a radial part u (x, as U in a G71 cycle) and an axial part w (z,
-as W): roughing works to the profile offset by both, the region under the profile dilated by
-the rectangle [-w, w] x [-u, u] (``offset_outline``), so the tool stays u off diameters and w
-off shoulder faces facing either way, and neither the setpoints nor a servo overshoot of a few
-um reach the profile. Rapids stop at least the clearance away from the stock left (and so from
-the offset profile under it): a pass starts where its line is the clearance away from the stock,
-a pass that ends against a face retracts at 45 degrees by the clearance, and a pass that has to
-start against a groove's wall comes in on a short ramp from the clearance off the wall.
+Roughing works to the profile offset by the finishing allowances (outline.offset_outline).
+Rapids stop at least the clearance away from the stock left (and so from the offset profile
+under it): a pass starts where its line is the clearance away from the stock, a pass that
+ends against a face retracts at 45 degrees by the clearance, and a pass that has to start
+against a groove's wall comes in on a short ramp from the clearance off the wall.
 Tool nose radius 0.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
-from cnc_msgs_py.outline import ArcError
-from cnc_msgs_py.outline import arc_points as _arc_points
-from cnc_msgs_py.units import to_mm
+from cnc_planner.kinds.turn.moves import RoughingPlan, TurnMove
+from cnc_planner.kinds.turn.outline import TurningError, check_outlines, mm_text, offset_outline
+from cnc_planner.kinds.turn.stock import EPS, TOUCH, HeightField, Point, StockModel, merge_intervals
 
-Point = tuple[float, float]  # (z, x): x is a radius, m
-
-EPS = 1.0e-12  # m: below float noise at workpiece sizes; geometric decisions use it
-TOUCH = 1.0e-9  # m: the tool touches material only where it lies deeper than this
 MAX_PASSES = 2000  # roughing passes: a depth of cut that needs more is a typing error, and would plan for ages
-
-
-class TurningError(ValueError):
-    """Bad turning input; the message is one line starting with the job field, in mm."""
-
-
-@dataclass(frozen=True)
-class TurnMove:
-    """One straight move of the roughing cycle to (z, x); cutting if planned to remove material."""
-
-    kind: str  # "rapid" | "feed"
-    z: float
-    x: float
-    cutting: bool
-
-    @property
-    def end(self) -> Point:
-        return (self.z, self.x)
-
-
-class HeightField:
-    """A radius over z made of linear pieces (ascending z), with jumps and gaps.
-
-    Stock and profile outlines have shoulders (vertical segments) and ends, so their radius
-    jumps. At a jump the lower side counts: "below the field" then means strictly inside.
-    """
-
-    def __init__(self, za: np.ndarray, ra: np.ndarray, zb: np.ndarray, rb: np.ndarray):
-        self.za, self.ra, self.zb, self.rb = za, ra, zb, rb
-
-    @classmethod
-    def from_outline(cls, points: list[Point]) -> HeightField:
-        """From an outline given right to left; vertical segments become jumps."""
-        pieces = [(z1, r1, z0, r0) for (z0, r0), (z1, r1) in zip(points, points[1:]) if z0 > z1]
-        za, ra, zb, rb = (np.array(c, dtype=float) for c in zip(*reversed(pieces)))
-        return cls(za, ra, zb, rb)
-
-    def _value(self, i: np.ndarray, z: np.ndarray) -> np.ndarray:
-        t = (z - self.za[i]) / (self.zb[i] - self.za[i])
-        return self.ra[i] + (self.rb[i] - self.ra[i]) * t
-
-    def limits(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The radius just left and just right of each z (-inf where nothing is there)."""
-        z = np.atleast_1d(np.asarray(z, dtype=float))
-        n = len(self.za)
-        right = np.full(z.shape, -np.inf)
-        left = np.full(z.shape, -np.inf)
-        if n == 0:
-            return left, right
-        i = np.clip(np.searchsorted(self.za, z, side="right") - 1, 0, n - 1)
-        ok = (self.za[i] <= z) & (z < self.zb[i])
-        right[ok] = self._value(i[ok], z[ok])
-        j = np.clip(np.searchsorted(self.zb, z, side="left"), 0, n - 1)
-        ok = (self.za[j] < z) & (z <= self.zb[j])
-        left[ok] = self._value(j[ok], z[ok])
-        return left, right
-
-    def at(self, z: np.ndarray) -> np.ndarray:
-        """The radius at z, the lower side at a jump (so that x < at(z) is strictly inside)."""
-        return np.minimum(*self.limits(z))
-
-    def clip(self, lo: float, hi: float) -> tuple[np.ndarray, ...]:
-        """The pieces overlapping the open range (lo, hi), cut to it: z0, r0, z1, r1."""
-        keep = (self.za < hi) & (self.zb > lo)
-        i = np.flatnonzero(keep)
-        z0 = np.maximum(self.za[i], lo)
-        z1 = np.minimum(self.zb[i], hi)
-        return z0, self._value(i, z0), z1, self._value(i, z1)
-
-    def max_between(self, lo: float, hi: float) -> float:
-        """Highest radius over the open range (lo, hi); -inf if nothing is there."""
-        _, r0, _, r1 = self.clip(lo, hi)
-        return float(max(r0.max(initial=-np.inf), r1.max(initial=-np.inf)))
-
-    def above(self, level: float, tol: float) -> list[tuple[float, float]]:
-        """The z intervals (ascending) where the field lies more than tol above level."""
-        out = []
-        for za, ra, zb, rb in zip(self.za, self.ra, self.zb, self.rb):
-            ea, eb = ra - level - tol, rb - level - tol
-            if ea <= 0.0 and eb <= 0.0:
-                continue
-            if ea > 0.0 and eb > 0.0:
-                out.append((za, zb))
-                continue
-            zc = za + (zb - za) * ea / (ea - eb)
-            out.append((zc, zb) if eb > 0.0 else (za, zc))
-        return _merge(out)
-
-    def _over_segment(self, a: Point, b: Point) -> tuple[np.ndarray, ...]:
-        """Pieces under a non-vertical segment: z0, z1 and field minus segment at both."""
-        (za, xa), (zb, xb) = a, b
-        z0, r0, z1, r1 = self.clip(min(za, zb), max(za, zb))
-        slope = (xb - xa) / (zb - za)
-        return z0, z1, r0 - (xa + slope * (z0 - za)), r1 - (xa + slope * (z1 - za))
-
-    def length_inside(self, a: Point, b: Point, tol: float = TOUCH) -> float:
-        """Length of the segment a-b that runs more than tol below the field."""
-        if a[0] == b[0]:
-            top = float(self.at(a[0])[0]) - tol
-            return max(0.0, min(max(a[1], b[1]), top) - min(a[1], b[1]))
-        z0, z1, e0, e1 = self._over_segment(a, b)
-        e0, e1 = e0 - tol, e1 - tol
-        pos, neg = np.maximum(e0, e1), np.minimum(e0, e1)
-        frac = np.where(neg > 0.0, 1.0, np.where(pos <= 0.0, 0.0, pos / np.maximum(pos - neg, EPS)))
-        dz = float(np.sum(frac * (z1 - z0)))
-        return dz * math.dist(a, b) / abs(b[0] - a[0])
-
-    def lowered(self, a: Point, b: Point) -> HeightField:
-        """The field cut down to the segment a-b where it lies above it (the tool sweeps it away)."""
-        if a[0] == b[0]:
-            return self
-        (za, xa), (zb, xb) = a, b
-        lo, hi = min(za, zb), max(za, zb)
-        slope = (xb - xa) / (zb - za)
-        pieces: list[tuple[float, float, float, float]] = []
-        for p0, q0, p1, q1 in zip(self.za, self.ra, self.zb, self.rb):
-            if p1 <= lo or p0 >= hi:
-                pieces.append((p0, q0, p1, q1))
-                continue
-            k = (q1 - q0) / (p1 - p0)
-
-            def field(z: float) -> float:
-                return q0 + k * (z - p0)
-
-            def line(z: float) -> float:  # the tool's path
-                return xa + slope * (z - za)
-
-            if p0 < lo:
-                pieces.append((p0, q0, lo, field(lo)))
-            m0, m1 = max(p0, lo), min(p1, hi)
-            d0, d1 = field(m0) - line(m0), field(m1) - line(m1)
-            if d0 > 0.0 and d1 < 0.0 or d0 < 0.0 and d1 > 0.0:  # the path crosses the piece
-                mc = m0 + (m1 - m0) * d0 / (d0 - d1)
-                f0, f1 = (line, field) if d0 > 0.0 else (field, line)
-                pieces += [(m0, f0(m0), mc, f0(mc)), (mc, f1(mc), m1, f1(m1))]
-            else:
-                lower = line if d0 > 0.0 or d1 > 0.0 else field
-                pieces.append((m0, lower(m0), m1, lower(m1)))
-            if p1 > hi:
-                pieces.append((hi, field(hi), p1, q1))
-        za_, ra_, zb_, rb_ = (np.array(c, dtype=float) for c in zip(*(p for p in pieces if p[2] > p[0])))
-        return HeightField(za_, ra_, zb_, rb_)
-
-    def breaks(self, lo: float, hi: float) -> np.ndarray:
-        """Piece ends within [lo, hi], with lo and hi: between two of them the field is linear."""
-        z0, _, z1, _ = self.clip(lo, hi)
-        return np.union1d(np.concatenate([z0, z1]), [lo, hi])
-
-    def boundary(self) -> list[tuple[Point, Point]]:
-        """Segments bounding the region under the field, shoulders and ends included."""
-        segs = []
-        for i, (za, ra, zb, rb) in enumerate(zip(self.za, self.ra, self.zb, self.rb)):
-            segs.append(((za, ra), (zb, rb)))
-            before = self.rb[i - 1] if i > 0 and self.zb[i - 1] == za else 0.0
-            segs.append(((za, before), (za, ra)))
-            if i + 1 == len(self.za) or self.za[i + 1] != zb:
-                segs.append(((zb, rb), (zb, 0.0)))
-        return segs
-
-
-class StockModel:
-    """The stock left at each moment: the tool sweeps away all material above its tip."""
-
-    def __init__(self, stock: list[Point]):
-        self.field = HeightField.from_outline(stock)
-
-    def cut(self, a: Point, b: Point) -> float:
-        """Move the tool tip from a to b; returns the length along which it touched material."""
-        touched = self.field.length_inside(a, b)
-        self.field = self.field.lowered(a, b)
-        return touched
-
-    def distance(self, p: Point) -> float:
-        """Distance from p to the stock left (0 if p is inside it)."""
-        if p[1] < float(self.field.at(p[0])[0]):
-            return 0.0
-        return min(_point_segment_distance(np.array([p]), s0, s1)[0] for s0, s1 in self.field.boundary())
-
-
-@dataclass
-class RoughingPlan:
-    """A roughing cycle as straight moves from the machining origin Q0 back to Q0.
-
-    passes counts pass lines cut over one free stretch each (and the contour pass, if any).
-    """
-
-    moves: list[TurnMove]
-    passes: int
-    origin: Point
-    stock: list[Point]
-
-    def segments(self) -> list[tuple[Point, TurnMove]]:
-        """Each move with the point it starts from."""
-        return _with_starts(self.origin, self.moves)
-
-    @property
-    def path_length(self) -> float:
-        return sum(math.dist(a, m.end) for a, m in self.segments())
-
-    @property
-    def feed_length(self) -> float:
-        return sum(math.dist(a, m.end) for a, m in self.segments() if m.kind == "feed")
-
-    def engagement(self) -> list[float]:
-        """Per move, the length along which the tool touches the stock left at that moment."""
-        model = StockModel(self.stock)
-        return [model.cut(a, m.end) for a, m in self.segments()]
-
-    @property
-    def air_feed_length(self) -> float:
-        """Feed-rate travel in which the tool touches no material: the time the method saves."""
-        return sum(
-            math.dist(a, m.end) - touched
-            for (a, m), touched in zip(self.segments(), self.engagement())
-            if m.kind == "feed"
-        )
-
-    def points(self, step: float) -> np.ndarray:
-        """The tool tip sampled along the whole path at most step apart, shape (n, 2)."""
-        chunks = [np.array([self.origin])]
-        for a, m in self.segments():
-            n = max(1, math.ceil(math.dist(a, m.end) / step))
-            t = np.linspace(0.0, 1.0, n + 1)[1:, None]
-            chunks.append(np.array(a) + t * (np.array(m.end) - np.array(a)))
-        return np.vstack(chunks)
-
-    def to_dict(self) -> dict:
-        """Summary for reports, in mm."""
-        return {
-            "passes": self.passes,
-            "air_feed_mm": round(float(to_mm(self.air_feed_length)), 3),
-            "path_mm": round(float(to_mm(self.path_length)), 3),
-            "feed_mm": round(float(to_mm(self.feed_length)), 3),
-        }
-
-
-def _fmt(value_m: float) -> str:
-    """A length in mm as machinists write it: at least one decimal, at most three."""
-    text = f"{to_mm(value_m):.3f}".rstrip("0")
-    return text + "0" if text.endswith(".") else text
-
-
-def _with_starts(origin: Point, moves: list[TurnMove]) -> list[tuple[Point, TurnMove]]:
-    starts = [origin] + [m.end for m in moves[:-1]]
-    return list(zip(starts, moves))
-
-
-def _merge(intervals: list[tuple[float, float]]) -> list[tuple[float, float]]:
-    """Union of intervals, touching ones joined, ascending."""
-    out: list[tuple[float, float]] = []
-    for lo, hi in sorted(intervals):
-        if out and lo <= out[-1][1] + EPS:
-            out[-1] = (out[-1][0], max(out[-1][1], hi))
-        else:
-            out.append((lo, hi))
-    return out
-
-
-def _point_segment_distance(p: np.ndarray, a: Point, b: Point) -> np.ndarray:
-    a_, b_ = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    ab = b_ - a_
-    t = np.clip(((p - a_) @ ab) / max(float(ab @ ab), EPS * EPS), 0.0, 1.0)
-    return np.linalg.norm(p - (a_ + t[:, None] * ab), axis=1)
 
 
 def _clear_of(segments: list[tuple[Point, Point]], r: float, alpha: float) -> list[tuple[float, float]]:
@@ -338,74 +67,32 @@ def _clear_of(segments: list[tuple[Point, Point]], r: float, alpha: float) -> li
                 lo, hi = min(lo, b_lo), max(hi, b_hi)
         if lo < hi:
             out.append((lo, hi))
-    return _merge(out)
-
-
-def _check_outline(field: str, points: list[Point]) -> None:
-    if len(points) < 2:
-        raise TurningError(f"{field}: needs at least 2 points (got {len(points)})")
-    for i, p in enumerate(points):
-        if len(p) != 2 or not all(math.isfinite(v) for v in p):
-            raise TurningError(f"{field}: point {i} is not a finite [z, radius] pair")
-        if p[1] < 0.0:
-            raise TurningError(f"{field}: radius must not be negative (point {i})")
-        if i == 0:
-            continue
-        if p[0] > points[i - 1][0]:
-            raise TurningError(f"{field}: z must decrease from right to left (point {i})")
-        if tuple(p) == tuple(points[i - 1]):
-            raise TurningError(f"{field}: point {i} repeats point {i - 1}")
-    # With z never increasing, the outline can only cross itself by turning back on a shoulder.
-    for i in range(1, len(points) - 1):
-        (z0, r0), (z1, r1), (z2, r2) = points[i - 1], points[i], points[i + 1]
-        if z0 == z1 == z2 and (r1 - r0) * (r2 - r1) < 0.0:
-            raise TurningError(f"{field}: self-intersects at segment {i} (turns back at z={_fmt(z1)} mm)")
-    if points[0][0] == points[-1][0]:
-        raise TurningError(f"{field}: must span a length along z")
-
-
-def check_outlines(stock: list[Point], profile: list[Point]) -> None:
-    """Raise TurningError unless stock and profile are valid outlines and the profile lies in the stock."""
-    _check_outline("turn.stock", stock)
-    _check_outline("turn.profile", profile)
-    (s_right, _), (s_left, _) = stock[0], stock[-1]
-    (p_right, _), (p_left, _) = profile[0], profile[-1]
-    for z in (p_right, p_left):
-        if not s_left - EPS <= z <= s_right + EPS:
-            raise TurningError(
-                f"turn.profile: lies outside the stock at z={_fmt(z)} mm "
-                f"(the stock spans z={_fmt(s_right)}..{_fmt(s_left)} mm)"
-            )
-    s_field, p_field = HeightField.from_outline(stock), HeightField.from_outline(profile)
-    zs = np.union1d(p_field.breaks(p_left, p_right), s_field.breaks(p_left, p_right))
-    for lo, hi in reversed(list(zip(zs[:-1], zs[1:]))):  # right to left, as the user reads it
-        for z, side in ((hi, 0), (lo, 1)):  # each value from inside (lo, hi)
-            p = p_field.limits(z)[side][0]
-            if p > s_field.limits(z)[side][0] + EPS:
-                raise TurningError(f"turn.profile: lies outside the stock at z={_fmt(z)} mm")
+    return merge_intervals(out)
 
 
 def _check_parameters(stock: list[Point], profile: list[Point], depth_of_cut: float, clearance: float,
                       origin: Point, finish_allowance: float) -> None:
     for field, value in (("depth_of_cut", depth_of_cut), ("clearance", clearance)):
         if not (math.isfinite(value) and value > 0.0):
-            raise TurningError(f"turn.{field}: must be a positive length (got {_fmt(value)} mm)")
+            raise TurningError(f"turn.{field}", f"must be a positive length (got {mm_text(value)} mm)")
     if not (math.isfinite(finish_allowance) and finish_allowance >= 0.0):
-        raise TurningError(f"turn.finish_allowance: must not be negative (got {_fmt(finish_allowance)} mm)")
+        raise TurningError("turn.finish_allowance", f"must not be negative (got {mm_text(finish_allowance)} mm)")
     if len(origin) != 2 or not all(math.isfinite(v) for v in origin):
-        raise TurningError("turn.origin: must be a finite [z, radius] pair")
+        raise TurningError("turn.origin", "must be a finite [z, radius] pair")
     span = max(r for _, r in stock) - min(r for _, r in profile)
     if span / depth_of_cut > MAX_PASSES:
         raise TurningError(
-            f"turn.depth_of_cut: {_fmt(depth_of_cut)} mm takes {span / depth_of_cut:.4g} passes over "
-            f"{_fmt(span)} mm of stock, more than the maximum {MAX_PASSES}; need >= {_fmt(span / MAX_PASSES)} mm"
+            "turn.depth_of_cut",
+            f"{mm_text(depth_of_cut)} mm takes {span / depth_of_cut:.4g} passes over "
+            f"{mm_text(span)} mm of stock, more than the maximum {MAX_PASSES}; need >= {mm_text(span / MAX_PASSES)} mm"
         )
     top = max(max(r for _, r in stock), max(r for _, r in profile) + finish_allowance)
     right = max(stock[0][0], profile[0][0])
     if not (origin[1] > top or origin[0] > right):
         raise TurningError(
-            f"turn.origin: must lie above the stock (x > {_fmt(top)} mm) or right of it "
-            f"(z > {_fmt(right)} mm)"
+            "turn.origin",
+            f"must lie above the stock (x > {mm_text(top)} mm) or right of it "
+            f"(z > {mm_text(right)} mm)"
         )
 
 
@@ -465,7 +152,7 @@ class _Cycle:
     def clear_start(self, r: float, z: float) -> float:
         """The smallest z' >= z on the line x = r at least the clearance away from the stock left."""
         blocked = _clear_of(self.stock.field.boundary(), r, self.alpha - 0.5 * TOUCH)
-        blocked = _merge(blocked + self.stock.field.above(r, 0.0))  # inside the stock
+        blocked = merge_intervals(blocked + self.stock.field.above(r, 0.0))  # inside the stock
         for lo, hi in blocked:
             if lo < z < hi:
                 z = hi
@@ -530,8 +217,9 @@ class _Cycle:
             return
         if self.straight_lift(start, self.origin) > start[1] + TOUCH:
             raise TurningError(
-                f"turn.origin: the straight move to the first pass start (z={_fmt(start[0])}, "
-                f"x={_fmt(start[1])} mm) would cut the stock"
+                "turn.origin",
+                f"the straight move to the first pass start (z={mm_text(start[0])}, "
+                f"x={mm_text(start[1])} mm) would cut the stock"
             )
         self.move("rapid", start, False)
 
@@ -580,7 +268,7 @@ def _plan(stock: list[Point], profile: list[Point], depth_of_cut: float, clearan
     check_outlines(stock, profile)
     _check_parameters(stock, profile, depth_of_cut, clearance, origin, finish_allowance)
     if not (math.isfinite(finish_allowance_z) and finish_allowance_z >= 0.0):
-        raise TurningError(f"turn.finish_allowance_z: must not be negative (got {_fmt(finish_allowance_z)} mm)")
+        raise TurningError("turn.finish_allowance_z", f"must not be negative (got {mm_text(finish_allowance_z)} mm)")
     stock = [(float(z), float(r)) for z, r in stock]
     profile = [(float(z), float(r)) for z, r in profile]
     origin = (float(origin[0]), float(origin[1]))
@@ -612,135 +300,3 @@ def plan_naive(stock: list[Point], profile: list[Point], depth_of_cut: float, cl
     """The same passes, each started at the virtual cylinder's right end: the baseline to beat."""
     return _plan(stock, profile, depth_of_cut, clearance, origin, finish_allowance, finishing_pass,
                  finish_allowance_z, True)
-
-
-def arc_points(start: Point, end: Point, center: Point | None = None, radius: float | None = None,
-               max_chord_error: float = 1.0e-6) -> list[Point]:
-    """Points of an arc of an outline, chords within max_chord_error of the arc, start and end included.
-
-    Give the center, the signed radius, or both. A positive radius turns counter-clockwise in
-    the Z-X plane (z right, x up): run right to left, as outlines are, that arc bulges away from
-    the axis (convex, a rounded corner); negative is clockwise (concave, a fillet or groove).
-    With the radius alone the arc is the shorter one; with the center alone it is the shorter
-    one too, and a half circle needs the radius's sign to pick its side. Job files expand their
-    arcs with the same function when they are parsed (cnc_msgs_py.job).
-    """
-    try:
-        return _arc_points(start, end, center, radius, max_chord_error)
-    except ArcError as err:
-        raise TurningError(str(err)) from err
-
-
-def _envelope(pieces: list[tuple[float, float, float, float]], lo: float, hi: float) -> list[tuple[float, ...]]:
-    """Upper envelope over [lo, hi] of linear pieces (z0, r0, z1, r1), as contiguous pieces, ascending."""
-    p = np.array(pieces, dtype=float)
-    za, ra, zb, rb = p.T
-    cuts = np.unique(np.clip(np.concatenate([za, zb, [lo, hi]]), lo, hi))
-    out: list[list[float]] = []
-    for a, b in zip(cuts[:-1], cuts[1:]):
-        if b - a <= EPS * 1e-3:
-            continue
-        m = 0.5 * (a + b)
-        act = p[(za < m) & (zb > m)]
-        if len(act) == 0:
-            continue
-        k = (act[:, 3] - act[:, 1]) / (act[:, 2] - act[:, 0])
-        def at(z: float) -> float:
-            return float(np.max(act[:, 1] + k * (z - act[:, 0])))
-        zs = {a, b}
-        for i in range(len(act)):
-            for j in range(i + 1, len(act)):
-                dk = k[i] - k[j]
-                if dk != 0.0:
-                    # r_i(z) = r_j(z)
-                    zc = (act[j, 1] - k[j] * act[j, 0] - act[i, 1] + k[i] * act[i, 0]) / dk
-                    if a < zc < b:
-                        zs.add(float(zc))
-        zs_sorted = sorted(zs)
-        for z0, z1 in zip(zs_sorted[:-1], zs_sorted[1:]):
-            v0, v1 = at(z0), at(z1)
-            if out and abs(out[-1][2] - z0) < 1e-15 and abs(out[-1][3] - v0) < 1e-15:
-                # collinear with the previous piece: extend it
-                pz0, pv0, pz1, pv1 = out[-1]
-                if abs((pv1 - pv0) * (z1 - pz0) - (v1 - pv0) * (pz1 - pz0)) <= 1e-18:
-                    out[-1] = [pz0, pv0, z1, v1]
-                    continue
-            if out:
-                z0 = out[-1][2]  # snap to the previous end: no gaps, jumps only
-            out.append([z0, v0, z1, v1])
-    return [tuple(o) for o in out]
-
-
-def offset_outline(profile: list[Point], radial: float, axial: float) -> list[Point]:
-    """The profile offset by the finishing allowances, right to left: the outline roughing works to.
-
-    The region under the profile dilated by the rectangle [-axial, axial] x [-radial, radial]
-    (a Minkowski sum): diameters move up by radial, shoulder faces move away from the part by
-    axial whichever way they face, slopes by the rectangle's corner. The part's right end face
-    moves right by axial too; on the left the outline ends at the profile's end (the zone ends
-    there, against stock that stays).
-    """
-    profile = [(float(z), float(r)) for z, r in profile]
-    if axial <= 0.0:
-        return [(z, r + radial) for z, r in profile]
-    field = HeightField.from_outline(profile)
-    w = axial
-    swept = []
-    for za, ra, zb, rb in zip(field.za, field.ra, field.zb, field.rb):
-        if ra < rb:
-            swept += [(za - w, ra, zb - w, rb), (zb - w, rb, zb + w, rb)]
-        elif ra > rb:
-            swept += [(za - w, ra, za + w, ra), (za + w, ra, zb + w, rb)]
-        else:
-            swept.append((za - w, ra, zb + w, rb))
-    pieces = _envelope(swept, profile[-1][0], profile[0][0] + w)
-    out: list[Point] = []
-    for z0, v0, z1, v1 in reversed(pieces):  # right to left
-        for q in ((z1, v1 + radial), (z0, v0 + radial)):
-            if not out or q != out[-1]:
-                out.append(q)
-    # the profile's end faces (drops at its ends) stay where they are
-    if profile[0][0] == profile[1][0]:
-        out.insert(0, (profile[0][0] + w, profile[0][1] + radial))
-    if profile[-1][0] == profile[-2][0]:
-        out.append((profile[-1][0], profile[-1][1] + radial))
-    return out
-
-
-def max_gouge(points_zx: np.ndarray, profile: list[Point], finish_allowance: float,
-              finish_allowance_z: float = 0.0) -> float:
-    """How far any tool tip sample lies inside the profile offset by the allowances (m, 0 if none does)."""
-    pts = np.atleast_2d(np.asarray(points_zx, dtype=float))
-    offset = offset_outline(profile, finish_allowance, finish_allowance_z)
-    inside = pts[:, 1] < HeightField.from_outline(offset).at(pts[:, 0]) - EPS
-    if not inside.any():
-        return 0.0
-    p = pts[inside]
-    (z_right, x_right), (z_left, x_left) = offset[0], offset[-1]
-    face, end = ((z_right, 0.0), (z_right, x_right)), ((z_left, x_left), (z_left, 0.0))
-    boundary = [face, *zip(offset, offset[1:]), end]
-    depth = np.min([_point_segment_distance(p, a, b) for a, b in boundary], axis=0)
-    return float(depth.max())
-
-
-def material_left(stock: list[Point], profile: list[Point], moves: list[TurnMove], origin: Point,
-                  finish_allowance: float = 0.0, finish_allowance_z: float = 0.0) -> float:
-    """Thickest material left above the profile after the moves (radial, m), over the profile's length.
-
-    With allowances, above the profile offset by them (offset_outline): what the allowances do not
-    explain, which a shoulder face's axial allowance would otherwise show as the face's height.
-    Replays the moves against the stock, so it judges what the path cuts, not what it intends.
-    """
-    model = StockModel(stock)
-    for a, m in _with_starts(origin, moves):
-        model.cut(a, m.end)
-    part = HeightField.from_outline(offset_outline(profile, finish_allowance, finish_allowance_z))
-    lo, hi = profile[-1][0], profile[0][0]
-    zs = np.union1d(part.breaks(lo, hi), model.field.breaks(lo, hi))
-    worst = 0.0
-    for z0, z1 in zip(zs[:-1], zs[1:]):
-        for z, side in ((z0, 1), (z1, 0)):  # each value from inside (z0, z1)
-            left = model.field.limits(z)[side][0] - part.limits(z)[side][0]
-            if math.isfinite(left):
-                worst = max(worst, float(left))
-    return worst

@@ -48,9 +48,8 @@ def finish(session: Session, proc: subprocess.Popen, timeout: float = 45) -> tup
 def test_cnc_submit_runs_and_cancels_jobs_on_running_nodes(tmp_path):
     job = tmp_path / "short.yaml"
     job.write_text(yaml_text(move_job("sub-1", 20.0)))
-    long_job = tmp_path / "long.yaml"
-    # 120 s of feed: longer than --cancel-after even with the simulation running 10x real time
-    long_job.write_text(yaml_text(move_job("sub-2", 200.0, feed=100.0)))
+    queued = tmp_path / "queued.yaml"
+    queued.write_text(yaml_text(move_job("sub-2", 20.0)))
     with Session("mill3", tmp_path / "bag") as session:
         proc = submit_process(job, "--namespace", "/cnc", "--timeout", "30")
         out, err = finish(session, proc)
@@ -59,13 +58,22 @@ def test_cnc_submit_runs_and_cancels_jobs_on_running_nodes(tmp_path):
         assert final["job_id"] == "sub-1" and final["state"] == "succeeded" and final["cycle_time_s"] > 0
         assert "Traceback" not in err
 
-        proc = submit_process(long_job, "--cancel-after", "1.5", "--timeout", "30")
+        # sub-2 waits behind 600 s (machine time) of feed, and --cancel-after cancels it 3 s
+        # (wall) after sending: planned in milliseconds, it is accepted long before that, and
+        # still waiting then unless the simulation ran 200x real time (it runs up to 16x)
+        session.submit(json.dumps(move_job("ahead", 200.0, feed=20.0)))
+        session.spin_until(lambda: any(s["job_id"] == "ahead" and s["state"] == "running"
+                                       for s in session.recorder.statuses), 30, "the job ahead did not start")
+        proc = submit_process(queued, "--cancel-after", "3", "--timeout", "30")
         out, err = finish(session, proc)
         assert proc.returncode == 0, err  # canceled, as asked
         assert json.loads(out.strip().splitlines()[-1])["state"] == "canceled"
+        session.cancel("ahead")
+        assert session.wait("ahead", 60)["state"] == "canceled"
     # The planner got both (job_goal keeps no history, so a recorder discovered by the
     # cnc-submit process after it sent may miss a goal; the statuses are latched).
-    finals = [(s["job_id"], s["state"]) for s in read_run(tmp_path / "bag").statuses if s["state"] != "running"]
+    finals = [(s["job_id"], s["state"]) for s in read_run(tmp_path / "bag").statuses
+              if s["state"] != "running" and s["job_id"] != "ahead"]
     assert finals == [("sub-1", "accepted"), ("sub-1", "succeeded"), ("sub-2", "accepted"), ("sub-2", "canceled")]
 
 
@@ -97,8 +105,11 @@ def test_client_submits_follows_waits_and_cancels_in_process(tmp_path):
             running = [s for s in seen if s["state"] == "running"]
             assert all(0.0 <= s["progress"] <= 1.0 and s["duration_s"] > 0 for s in running)
 
-            # YAML text, canceled once it runs; a timeout is an exception, not a hang.
-            job_id = client.submit(yaml_text(move_job("cli-2", 200.0)))
+            # YAML text, canceled once it runs; a timeout is an exception, not a hang. 120 s of
+            # feed, so that it is still running 0.3 s on and when the cancel comes unless the
+            # simulation ran 100x real time (while this client spins, the recorder holds the
+            # bridge back for 1 s only; then it ran 7x)
+            job_id = client.submit(yaml_text(move_job("cli-2", 200.0, feed=100.0)))
             with pytest.raises(TimeoutError, match="cli-2"):
                 client.wait(job_id, timeout=0.3)
             deadline = time.monotonic() + 20

@@ -78,11 +78,18 @@ def test_planner_killed_mid_job_the_bridge_holds_and_a_new_planner_resumes(tmp_p
 
 def test_cancel_at_random_instants_always_stops_within_limits(tmp_path):
     rng = np.random.default_rng(7)
-    instants = sorted(rng.uniform(0.05, 0.9, size=3))
+    instants = sorted(rng.uniform(0.05, 0.9, size=3))  # fractions of LONG's moves
+    tail_s = 60.0  # a dwell after the moves, so the cancel comes while the job runs even at 0.9
+    # of the moves (without it, 0.44 s of machine time before the job ends: 28 ms at 16x real time)
     with Session("mill3", tmp_path / "bag") as session:
+        def first_status(job_id: str) -> dict | None:
+            return next((s for s in session.recorder.statuses if s["job_id"] == job_id), None)
+
         for k, fraction in enumerate(instants):
-            session.submit(move_job(f"c{k}", LONG))
-            running_past(session, f"c{k}", fraction)
+            session.submit(move_job(f"c{k}", LONG + [{"dwell": tail_s}]))
+            session.spin_until(lambda: first_status(f"c{k}") is not None, 60, f"c{k} was not answered")
+            duration = first_status(f"c{k}")["duration_s"]
+            running_past(session, f"c{k}", fraction * (duration - tail_s) / duration)
             session.cancel(f"c{k}")
             assert session.wait(f"c{k}", 60)["state"] == "canceled"
         session.submit(move_job("home", [{"rapid": {"x": 0.0}}]))

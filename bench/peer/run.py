@@ -324,7 +324,7 @@ def notes(rows: list[Row], lc: dict, us: dict, sessions: dict) -> list[str]:
         "Both sides start at the same point (drilling: one pitch before the first hole, 5 mm above the surface;",
         "  thread: the drive line 1 mm above the major radius at start_z; roughing: the origin Q0) with the",
         "  spindle at speed. Chips: analyze_thread (longest continuous cut of the cutting passes, spindle revs);",
-        "  air: feed travel not touching the stock left (cnc_planner.turning.StockModel replay of the path).",
+        "  air: feed travel not touching the stock left (cnc_planner.kinds.turn.stock.StockModel replay of the path).",
         "",
         "LinuxCNC got exactly our per-axis limits (INI [AXIS_*]/[JOINT_*], SI -> mm; [TRAJ] vector limits set",
         "  to the norm of the axis limits so they never bind). LinuxCNC 2.9 plans without a jerk limit",

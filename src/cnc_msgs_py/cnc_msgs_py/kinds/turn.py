@@ -86,8 +86,7 @@ def expand_outline(entries: list, path: str) -> list[list[float]]:
             arc = arc_points(tuple(start), tuple(end), None if entry.center is None else tuple(entry.center),
                              entry.radius, CHORD_TOLERANCE)
         except ArcError as err:
-            raise JobError(f"{where}.center" if "half circle" in str(err) else where,
-                           str(err).removeprefix("arc: ")) from err
+            raise JobError(f"{where}.{err.key}" if err.key else where, err.reason) from err
         for (z0, _), (z1, x1) in zip(arc, arc[1:]):
             if z1 > z0 + 1.0e-12:
                 raise JobError(where, "the arc turns back in z (outlines run right to left, z decreasing)")

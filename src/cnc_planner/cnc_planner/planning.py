@@ -14,12 +14,13 @@ from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.units import to_rpm
 
-from cnc_planner.kinematics import Kinematics
 from cnc_planner import kinds
+from cnc_planner.kinematics import Kinematics
 from cnc_planner.motion import SERVO_PERIOD
 from cnc_planner.motion.builder import PlanBuilder
 from cnc_planner.motion.derating import plan_within_limits
 from cnc_planner.motion.timeline import Event, Plan
+
 
 INTERNAL = "cannot be planned: internal planner error"
 

@@ -29,8 +29,8 @@ from typing import Iterator
 
 from cnc_msgs_py.machine import SPINDLE, Machine
 
-from cnc_planner.kinematics import Kinematics
 from cnc_planner.kinds import KINDS
+from cnc_planner.kinematics import Kinematics
 from cnc_planner.motion import SERVO_PERIOD
 from cnc_planner.motion.builder import PlanBuilder
 from cnc_planner.motion.derating import plan_within_limits

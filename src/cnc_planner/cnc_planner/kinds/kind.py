@@ -21,6 +21,7 @@ from cnc_analysis.recording import Run
 from cnc_planner.kinematics import Kinematics
 from cnc_planner.motion.builder import PlanBuilder
 
+
 Job = SimpleNamespace  # a validated job document in SI units (cnc_msgs_py.job.parse_job)
 
 

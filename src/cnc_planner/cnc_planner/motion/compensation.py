@@ -16,6 +16,7 @@ import numpy as np
 
 from cnc_servo_bridge.drive import DriveModel
 
+
 TWO_PI = 2.0 * math.pi
 COMPENSATION_TAIL = 0.25  # s: longest the compensated command may settle after the motion
 COMPENSATION_PASSES = 3  # simulate-and-correct passes; the first already lands within counts

@@ -21,6 +21,7 @@ from cnc_planner.motion.moves import axis_limits, path_limits
 from cnc_planner.motion.timeline import Piece
 from cnc_planner.vibration.waveform import Vibration, VibrationError, VibrationFeed, er_vibration
 
+
 TWO_PI = 6.283185307179586
 MAX_VIBRATION_FEED_S = 600.0  # one vibrated feed move at most this long: its compensation is
 # precomputed on the servo grid, so its memory grows with its duration

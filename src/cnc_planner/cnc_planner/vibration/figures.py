@@ -2,20 +2,20 @@
 revolution, and the map of where the tool cut air."""
 from __future__ import annotations
 
-from cnc_analysis.aircut import AircutReport
-from matplotlib.patches import Patch
-from cnc_analysis.aircut import analyze_aircut
-
 import math
 from types import SimpleNamespace
 
 import numpy as np
+from matplotlib.patches import Patch
 
 from cnc_msgs_py.machine import SPINDLE
 
+from cnc_analysis.aircut import analyze_aircut
+from cnc_analysis.aircut import AircutReport
 from cnc_analysis.recording import Run
 
 from cnc_planner.drawing import MM, TWO_PI, plt
+
 
 PHASE_BINS = 360  # 1 deg columns of the air-cut map
 CAPTIONS = {  # figure file stem -> what the report page says under it

@@ -5,6 +5,7 @@ import math
 
 from cnc_planner.kinds.kind import Card
 
+
 CHIP_MAX_REVS = 1.0  # a chip longer than one spindle revolution is not broken
 
 

@@ -7,17 +7,17 @@ from types import SimpleNamespace
 
 from cnc_msgs_py.machine import SPINDLE
 
-from cnc_planner.kinematics import Kinematics
-from cnc_planner.kinds.kind import Figures, JobKind, ProgressCount, ReportSection, Segmenting
-from cnc_planner.motion.builder import PlanBuilder
-from cnc_planner.motion.settle import settle_time
-
-from .block import drill_cycle
 from . import page
+from .block import drill_cycle
 from .cycle import DrillCycle
 from .figures import CAPTIONS, draw, first_hole_aircut
 from .planning import plan_drill
 from .report import drill_section
+from cnc_planner.kinds.kind import Figures, JobKind, ProgressCount, ReportSection, Segmenting
+from cnc_planner.kinematics import Kinematics
+from cnc_planner.motion.builder import PlanBuilder
+from cnc_planner.motion.settle import settle_time
+
 
 SEGMENT_HOLES = 50  # holes per segment: ~3 s of planning before a goal is accepted
 SETTLE_SHARE = 0.1  # of the X/Y tolerance: a drill segment ends once the feedback is this close

@@ -8,12 +8,12 @@ from cnc_msgs_py.machine import Machine
 from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.units import to_mm, to_mm_per_min
 
-from cnc_planner.kinematics import Kinematics
 from cnc_planner.kinds.drill.clamps import OBSTACLE_MARGIN, crossed, under_tool
 from cnc_planner.kinds.drill.cycle import RETURN_CLEARANCE, DrillCycle
 from cnc_planner.kinds.drill.hole_order import shortest_order
 from cnc_planner.kinds.drill.peck import peck_of, xy_plane
 from cnc_planner.kinds.drill.tilted import tilted, tilted_frame
+from cnc_planner.kinematics import Kinematics
 from cnc_planner.travel import check_travel, to_axes
 from cnc_planner.vibration.feed import TWO_PI, vibration_error, vibration_of
 from cnc_planner.vibration.waveform import VibrationError, check_vibration

@@ -2,20 +2,20 @@
 S1/S2/S3 timing per hole on feedback."""
 from __future__ import annotations
 
-from cnc_planner.kinds.drill.cycle import DrillCycle
-from cnc_planner.kinematics import Kinematics
-from matplotlib.patches import Rectangle
-from cnc_planner.kinds.drill.block import drill_cycle
-
 from types import SimpleNamespace
 
 import numpy as np
+from matplotlib.patches import Rectangle
 
 from cnc_msgs_py.machine import Machine
 
 from cnc_analysis.recording import Run
 
 from cnc_planner.drawing import COMMAND, FEEDBACK, MM, envelope, plt, recording_note, stride
+from cnc_planner.kinds.drill.block import drill_cycle
+from cnc_planner.kinds.drill.cycle import DrillCycle
+from cnc_planner.kinematics import Kinematics
+
 
 MOVING = 1e-4  # m/s: below this an axis counts as standing (end of the last retract)
 

@@ -7,11 +7,11 @@ from types import SimpleNamespace
 
 from cnc_msgs_py.machine import Machine
 
-from cnc_planner.kinematics import Kinematics
 from cnc_planner.kinds.drill.block import drill_cycle, obstacle_tops
 from cnc_planner.kinds.drill.cycle import RETURN_CLEARANCE
 from cnc_planner.kinds.drill.drilling import plan_cycle
 from cnc_planner.kinds.drill.tilted import plan_drill_tilted, tilted
+from cnc_planner.kinematics import Kinematics
 from cnc_planner.motion.builder import PlanBuilder
 from cnc_planner.travel import check_travel, to_axes
 

@@ -14,11 +14,11 @@ from cnc_analysis.drilling import analyze_drilling, obstacle_clearance
 from cnc_analysis.recording import Run
 
 from cnc_planner import planning
-from cnc_planner.kinematics import Kinematics
 from cnc_planner.kinds.drill.block import drill_cycle
-from cnc_planner.kinds.drill.clamps import OBSTACLE_MARGIN
 from cnc_planner.kinds.drill.bound import lower_bound_time
+from cnc_planner.kinds.drill.clamps import OBSTACLE_MARGIN
 from cnc_planner.kinds.drill.tilted import tilted, tilted_frame
+from cnc_planner.kinematics import Kinematics
 from cnc_planner.prediction import simulated_feedback
 from cnc_planner.vibration.report import feed_aircut, feeds
 

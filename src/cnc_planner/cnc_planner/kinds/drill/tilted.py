@@ -11,15 +11,16 @@ from cnc_msgs_py.machine import SPINDLE, Axis, Machine
 from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.units import to_deg, to_mm_per_min
 
-from cnc_planner.kinematics import Kinematics
 from cnc_planner.kinds.drill.cycle import RETURN_CLEARANCE, DrillCycle
 from cnc_planner.kinds.drill.drilling import plan_cycle
 from cnc_planner.kinds.drill.peck import peck_of, xy_plane
+from cnc_planner.kinematics import Kinematics
 from cnc_planner.motion.builder import PlanBuilder
 from cnc_planner.motion.moves import shared_samples
 from cnc_planner.motion.settle import settle_time
 from cnc_planner.motion.timeline import Piece
 from cnc_planner.travel import check_travel
+
 
 XYZ = ("x", "y", "z")
 

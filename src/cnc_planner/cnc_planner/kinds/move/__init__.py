@@ -6,10 +6,10 @@ from types import SimpleNamespace
 
 from cnc_msgs_py.machine import Machine
 
+from .planning import move_targets, plan_move
 from cnc_planner.kinds.kind import JobKind, Segmenting
 from cnc_planner.kinematics import Kinematics
 
-from .planning import move_targets, plan_move
 
 SEGMENT_MOVES = 500  # moves per segment of a move program
 

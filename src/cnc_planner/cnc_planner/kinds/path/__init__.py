@@ -2,10 +2,10 @@
 every layout, 5-axis included."""
 from __future__ import annotations
 
-from cnc_planner.kinds.kind import JobKind, ReportSection
-
 from .planning import plan_path
 from .report import path_section
+from cnc_planner.kinds.kind import JobKind, ReportSection
+
 
 KIND = JobKind(
     name="path",

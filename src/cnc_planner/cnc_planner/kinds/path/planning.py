@@ -31,10 +31,11 @@ import numpy as np
 from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_msgs_py.schema import JobError
 
-from cnc_planner.motion.builder import PlanBuilder
 from cnc_planner.kinematics import Kinematics, SampledPath
+from cnc_planner.motion.builder import PlanBuilder
 from cnc_planner.motion.moves import Limits, RuckigMove, point_to_point
 from cnc_planner.motion.timeline import Piece
+
 
 INTERPOLATION_PERIOD = 1e-3  # s between setpoints (config/planner.yaml): velocity steps happen over it
 CORNER_SHARE = 0.5  # of an axis's max_acceleration that the velocity steps at waypoints may take

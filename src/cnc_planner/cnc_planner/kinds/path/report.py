@@ -15,9 +15,11 @@ import numpy as np
 
 from cnc_msgs_py.machine import Machine
 from cnc_msgs_py.units import to_mm
+
 from cnc_analysis.recording import Run
 
 from cnc_planner.kinematics import Kinematics
+
 
 BLOCK = 512  # query points measured together against the segments near them
 SETTLE_S = 0.5  # s of feedback after path_end still judged: the drives settle on the end point

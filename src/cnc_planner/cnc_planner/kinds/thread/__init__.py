@@ -3,12 +3,11 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
-from cnc_planner.kinds.kind import Figures, JobKind, ProgressCount, ReportSection
-
 from . import page
 from .figures import CAPTIONS, draw
 from .planning import plan_thread_job
 from .report import thread_section
+from cnc_planner.kinds.kind import Figures, JobKind, ProgressCount, ReportSection
 
 
 def thread_passes(job: SimpleNamespace) -> int:

@@ -2,10 +2,7 @@
 feedback."""
 from __future__ import annotations
 
-from cnc_planner.kinematics import Kinematics
-from cnc_analysis.threads import cross_section
 import json
-
 import math
 from types import SimpleNamespace
 
@@ -14,8 +11,11 @@ import numpy as np
 from cnc_msgs_py.machine import SPINDLE, Machine
 
 from cnc_analysis.recording import Run
+from cnc_analysis.threads import cross_section
 
 from cnc_planner.drawing import plt
+from cnc_planner.kinematics import Kinematics
+
 
 SECTION_REVS = 3.0  # revolutions of groove shown pass against pass in the thread cross-section
 CAPTIONS = {  # figure file stem -> what the report page says under it

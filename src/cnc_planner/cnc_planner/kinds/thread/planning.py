@@ -10,12 +10,13 @@ import numpy as np
 from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.units import to_mm
+
 from cnc_servo_bridge.drive import DriveModel
 
-from cnc_planner.kinematics import Kinematics
 from cnc_planner.kinds.thread.checks import check_thread
 from cnc_planner.kinds.thread.cycle import ThreadCycle
 from cnc_planner.kinds.thread.spec import JOINTS, TWO_PI, ThreadSpec
+from cnc_planner.kinematics import Kinematics
 from cnc_planner.motion.builder import PlanBuilder
 from cnc_planner.motion.timeline import Piece
 

@@ -4,13 +4,12 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
-from cnc_planner.kinds.kind import Figures, JobKind, ProgressCount, ReportSection
-
 from . import page
 from .figures import CAPTIONS, draw
 from .planning import plan_turn
 from .report import turn_section
 from .roughing import plan_roughing
+from cnc_planner.kinds.kind import Figures, JobKind, ProgressCount, ReportSection
 
 
 def cutting_passes(job: SimpleNamespace) -> int:

@@ -2,10 +2,6 @@
 moves told from air moves."""
 from __future__ import annotations
 
-from cnc_planner.kinematics import Kinematics
-from cnc_planner.kinds.turn.outline import offset_outline
-from cnc_planner.kinds.turn.roughing import plan_roughing
-
 from types import SimpleNamespace
 
 import numpy as np
@@ -15,6 +11,10 @@ from cnc_msgs_py.machine import Machine
 from cnc_analysis.recording import Run
 
 from cnc_planner.drawing import FEEDBACK, MM, plt, recording_note, stride
+from cnc_planner.kinds.turn.outline import offset_outline
+from cnc_planner.kinds.turn.roughing import plan_roughing
+from cnc_planner.kinematics import Kinematics
+
 
 LOOKAHEAD_MOVES = 3  # planned moves a feedback sample may be matched to: lag cuts short moves
 CAPTIONS = {  # figure file stem -> what the report page says under it

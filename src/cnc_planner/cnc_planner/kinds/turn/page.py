@@ -4,6 +4,7 @@ from __future__ import annotations
 from cnc_planner.kinds.kind import Card
 from cnc_planner.page_format import mm
 
+
 GOUGE_LIMIT_MM = 0.01  # feedback into the finished part beyond this is a gouge
 
 

@@ -6,8 +6,8 @@ from types import SimpleNamespace
 
 from cnc_msgs_py.machine import Machine
 
-from cnc_planner.kinematics import Kinematics
 from cnc_planner.kinds.turn.roughing import plan_roughing
+from cnc_planner.kinematics import Kinematics
 from cnc_planner.motion.builder import PlanBuilder
 from cnc_planner.travel import check_travel, to_axes
 from cnc_planner.vibration.feed import feed_move, vibration_of

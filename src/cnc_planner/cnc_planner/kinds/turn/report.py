@@ -12,9 +12,9 @@ from cnc_msgs_py.units import to_mm
 from cnc_analysis import summary
 from cnc_analysis.recording import Run
 
-from cnc_planner.kinematics import Kinematics
 from cnc_planner.kinds.turn.judge import max_gouge
 from cnc_planner.kinds.turn.roughing import plan_naive, plan_roughing
+from cnc_planner.kinematics import Kinematics
 
 
 def turn_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray) -> dict:

@@ -240,12 +240,17 @@ class ThreadCycle:
             move = self._ramps.reach("x", state, x_target)
             return math.inf if move is None else move.duration
 
-        lo, hi = 1, round((t_join - last.t_out) / period)  # turn back after lo..hi periods
-        if hi < lo or fastest(lo) > (hi - lo) * period + 1e-12:
+        n = round((t_join - last.t_out) / period)  # periods from the exit to the join
+
+        def arrives(k: int) -> bool:  # turning back after k periods still lands by t_join
+            return fastest(k) <= (n - k) * period + 1e-12
+
+        lo, hi = 1, n
+        if hi < lo or not arrives(lo):
             return None
-        while hi - lo > 1:  # the latest turn that still arrives by t_join
+        while hi - lo > 1:  # the latest turn that still arrives
             mid = (lo + hi) // 2
-            lo, hi = (mid, hi) if fastest(mid) <= (round((t_join - last.t_out) / period) - mid) * period + 1e-12 else (lo, mid)
+            lo, hi = (mid, hi) if arrives(mid) else (lo, mid)
         t_turn = last.t_out + lo * period
         state = [float(q[0]) for q in last.retract.at_time(min(lo * period, last.retract.duration))]
         plunge = self._ramps.reach("x", state, x_target, duration=t_join - t_turn)

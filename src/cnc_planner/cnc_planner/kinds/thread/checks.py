@@ -138,9 +138,8 @@ def _check_room(spec: ThreadSpec, machine: Machine) -> None:
         )
     x_axis, z_axis = machine.axis("x"), machine.axis("z")
     x0, z0 = spec.origin
-    x_clear = spec.clear_radius
     x_deep = spec.surface(spec.end_z) + spec.radial * spec.depth
-    for x in (x0 + x_clear, x0 + x_deep):
+    for x in (x0 + spec.clear_radius, x0 + spec.air_radius, x0 + x_deep):
         if not x_axis.within_travel(x):
             raise ThreadError(
                 "thread.major_radius", f"the tool would reach axis x = {_mm(x)}, outside the x axis travel "

@@ -3,10 +3,9 @@ joins onto each pass's helix, the pull-outs past end_z, and the drive compensati
 
 Every pass's helix passes start_z at the same spindle phase (the index, plus 360/starts
 per start), so all passes land in one groove; z is locked to the spindle angle, not to
-time. Each pass pulls out past end_z, into the relief groove, on a retreating stroke of
-its vibration. The whole cycle's x/z command is pre-compensated with the drive model
-(motion.compensation) so the bridge's feedback, not only the command, holds lead, depth
-and flank offset.
+time. Each pass pulls out as soon as it is past end_z, into the relief groove. The whole
+cycle's x/z command is pre-compensated with the drive model (motion.compensation) so the
+bridge's feedback, not only the command, holds lead, depth and flank offset.
 """
 from __future__ import annotations
 
@@ -31,7 +30,9 @@ COMPENSATION_BAND = (0.05, 0.12)  # of the servo rate (50..120 Hz at 1 ms): abov
 LEAD_TIME = 0.06  # s at rest before the ramp: the band-limited compensation leads this far
 SETTLED_COUNTS = 0.25  # encoder counts: a command correction below this has settled
 MAX_AIR_S = 3.0  # s: longest the search for a pass's join looks beyond its earliest start
-JOIN_ROOM_REVS = 0.25  # revolutions of helix, at least, between joining it and the face
+JOIN_ROOM_REVS = 0.05  # revolutions of helix, at least, between joining it and the face
+TURN_ROOM = (0.5e-3, 1e-3, 2e-3)  # m in front of a join where z may turn at rest, so that x
+# plunges while z is clear of the face
 JOIN_BATCH = 64  # candidate joins whose helix states are evaluated at once
 
 
@@ -63,7 +64,7 @@ class CutTiming:
     t_begin: float  # its air path begins (the previous pass leaves its helix)
     t_join: float  # on the helix
     t_out: float  # leaves the helix past end_z
-    retract: Trajectory  # x out to the clearance radius from t_out
+    retract: Trajectory  # x out towards spec.air_radius from t_out (the last pass: the clearance radius)
     stop: Trajectory  # z to rest from t_out
 
     @property
@@ -75,34 +76,49 @@ class ThreadCycle:
     """Every pass of every start as one continuous motion of x and z, on a clock from the
     cycle start (at rest at the clearance radius and start_z, the spindle at speed).
 
-    Between passes the tool never stops to wait. As a pass leaves its helix past end_z, x
-    pulls out to the clearance radius and z stops; z turns back as soon as x is out of the
-    stock (the rest of the retract overlaps the return) and runs one jerk-limited path
-    straight onto the next pass's running helix, timed to arrive there at the servo
-    instant the spindle phase allows: the wait for the phase is spent in the return.
-    x plunges to the pass depth in front of the face, on a path that ends on the helix.
-    Which helix revolution a pass joins is the earliest whose join lies before the face by
-    JOIN_ROOM_REVS and that the axes can reach with the tool never inside the stock over
-    the thread. With a drive model the whole cycle is compensated at once
+    Between passes the tool never stops to wait. At the first servo instant past end_z
+    (the relief groove) x pulls out, heading for spec.air_radius, and z runs one
+    jerk-limited path onto the next pass's running helix, timed to arrive there at the servo
+    instant the spindle phase allows: straight from the helix where x leaves the stock in
+    time, else from rest once x is out, or turning at rest TURN_ROOM in front of the join so
+    that x can plunge while z is clear of the face. x turns back from its way out at the
+    latest instant from which it still lands on the helix. Which helix revolution a pass
+    joins is the earliest whose join lies before the face by JOIN_ROOM_REVS and that the
+    axes can reach with the tool never inside the stock over the thread. After the last
+    pass x pulls out to the clearance radius and z returns to start_z, both inside the
+    cycle. With a drive model the whole cycle is compensated at once
     (motion.compensation): the command's lead-in of each pass runs while the tool is
     still in the air, and only the cycle's start needs LEAD_TIME at rest.
     """
 
     def __init__(self, spec: ThreadSpec, machine: Machine, period: float, theta0: float,
-                 drive: DriveModel | None = None) -> None:
+                 drive: DriveModel | None = None, settled: float = 0.0) -> None:
+        """``settled``: cycle time before which no pass may join its helix (the spindle's
+        following error dies out meanwhile, while the axes already approach)."""
         self.spec, self.machine, self.period, self.theta0 = spec, machine, period, theta0
+        self.settled = settled
         self._ramps = Ramps(machine)
         self.t_lead = round(LEAD_TIME / period) * period
         self.x_clear = spec.origin[0] + spec.clear_radius
+        self.x_air = spec.origin[0] + spec.air_radius
         self.tracks: list[list[Stretch]] = [[(0.0, _held(self.x_clear))],
                                             [(0.0, _held(spec.origin[1] + spec.start_z))]]
         self.cuts: list[CutTiming] = []
         for cut in passes_of(spec):
             for start in range(spec.starts):
                 self._add(cut, start)
-        self.end = np.array([self.cuts[-1].retract.at_time(self.cuts[-1].retract.duration)[0][0],
-                             self.cuts[-1].stop.at_time(self.cuts[-1].stop.duration)[0][0]])
-        self.duration = math.ceil(self.cuts[-1].t_end / period - 1e-9) * period
+        # the last pass pulls out to the clearance radius, and z runs back to the cycle's
+        # start once x is out of the stock, inside the compensated cycle
+        last = self.cuts[-1]
+        last.retract = self._ramps.reach("x", [float(q[0]) for q in last.retract.at_time(0.0)],
+                                         [self.x_clear, 0.0, 0.0])
+        self.tracks[0][-1] = (last.t_out, _moving(last.t_out, last.retract))
+        t_go, z_from = self._at_rest_clear(last)
+        t_go = math.ceil(max(t_go, last.t_end) / period - 1e-9) * period  # the pass is over first
+        home = self._ramps.reach("z", [z_from, 0.0, 0.0], [spec.origin[1] + spec.start_z, 0.0, 0.0])
+        self.tracks[1].append((t_go, _moving(t_go, home)))
+        self.end = np.array([self.x_clear, spec.origin[1] + spec.start_z])
+        self.duration = math.ceil(max(last.t_end, t_go + home.duration) / period - 1e-9) * period
         self._correction: np.ndarray | None = None
         self._cache: tuple[tuple[int, float, float], np.ndarray] | None = None
         if drive is not None:
@@ -121,36 +137,28 @@ class ThreadCycle:
         if self.cuts:
             last = self.cuts[-1]
             t_begin, x_free = last.t_out, last.t_out + last.retract.duration
-            out = np.arange(math.ceil(last.retract.duration / period) + 1) * period
-            depth = spec.radial * (_evaluate(last.retract, out)[0, :, 0] - x0 - spec.surface(spec.end_z))
-            t_clear = last.t_out + float(out[np.flatnonzero(depth <= 0.0)[0]])
-            t_go = math.ceil(max(t_clear, last.t_out + last.stop.duration) / period - 1e-9) * period
-            z_from = last.stop.at_time(last.stop.duration)[0][0]
+            t_go, z_from = self._at_rest_clear(last)
+            # z straight from the helix's exit onto the next one (it turns in the relief
+            # groove while x pulls out), or, where that would cut the flank, from rest
+            # once x has cleared the stock
+            starts = [(last.t_out, [float(q[0]) for q in last.stop.at_time(0.0)]), (t_go, [z_from, 0.0, 0.0])]
         else:
             t_begin, x_free = 0.0, self.t_lead
             t_go, z_from = self.t_lead, z0 + spec.start_z
+            starts = [(t_go, [z_from, 0.0, 0.0])]
         phase = TWO_PI * start / spec.starts
         psi_room = TWO_PI * (spec.start_z / spec.pitch - JOIN_ROOM_REVS)  # the latest join before the face
-        z_rest, x_rest = [z_from, 0.0, 0.0], [self.x_clear, 0.0, 0.0]
-        first = math.ceil(t_go / period - 1e-9) + 1
+        first = max(math.ceil(starts[0][0] / period - 1e-9) + 1, math.ceil(self.settled / period - 1e-9))
         for k, t_join, theta_ref, target in self._joins(cut, phase, psi_room, first,
                                                         first + math.ceil(MAX_AIR_S / period)):
-            z_target = target[1].tolist()
-            fastest = self._ramps.reach("z", z_rest, z_target)
-            if fastest is None or fastest.duration > t_join - t_go + 1e-12:
-                continue
-            back = self._ramps.reach("z", z_rest, z_target, duration=t_join - t_go)
-            plunge = self._ramps.reach("x", x_rest, target[0].tolist())
-            if (back is None or abs(back.duration - (t_join - t_go)) > 1e-9 or plunge is None
-                    or t_join - plunge.duration < x_free - 1e-12):
-                continue
-            tried = [[(t_join - plunge.duration, _moving(t_join - plunge.duration, plunge))],
-                     [(t_go, _moving(t_go, back))]]
             grid = np.arange(math.floor(t_begin / period), k) * period
-            x, z = (self._sample(track + extra, grid)[0] for track, extra in zip(self.tracks, tried))
-            depth = spec.radial * (x - x0 - spec.surface(z - z0))
-            over_stock = (s * (z - z0) >= 0.0) & (s * (z - z0) <= s * spec.end_z)
-            if np.any(over_stock & (depth > 0.0)):
+            for tried in self._air_paths(target, t_join, starts, x_free):
+                x, z = (self._sample(track + extra, grid)[0] for track, extra in zip(self.tracks, tried))
+                depth = spec.radial * (x - x0 - spec.surface(z - z0))
+                over_stock = (s * (z - z0) >= 0.0) & (s * (z - z0) <= s * spec.end_z)
+                if not np.any(over_stock & (depth > 0.0)):
+                    break
+            else:
                 continue
             on_helix = self._on_helix(cut, theta_ref)
             for j in range(2):
@@ -164,6 +172,91 @@ class ThreadCycle:
             "thread.start_z", f"the axes cannot reach the helix of pass {cut.index + 1} in front of the "
             f"face within {MAX_AIR_S:g} s"
         )
+
+    def _at_rest_clear(self, last: CutTiming) -> tuple[float, float]:
+        """(servo instant, z) at which z has stopped past the pass ``last`` and x has
+        pulled out of the stock: from then on z may run back over the thread."""
+        spec, period = self.spec, self.period
+        out = np.arange(math.ceil(last.retract.duration / period) + 1) * period
+        depth = spec.radial * (_evaluate(last.retract, out)[0, :, 0] - spec.origin[0] - spec.surface(spec.end_z))
+        t_clear = last.t_out + float(out[np.flatnonzero(depth <= 0.0)[0]])
+        t_go = math.ceil(max(t_clear, last.t_out + last.stop.duration) / period - 1e-9) * period
+        return t_go, last.stop.at_time(last.stop.duration)[0][0]
+
+    def _air_paths(self, target: np.ndarray, t_join: float, starts: list[tuple[float, list[float]]],
+                   x_free: float):
+        """The x plunge and z returns that reach the helix state ``target`` (rows x, z)
+        exactly at t_join, best first: z from each of ``starts`` (time, state) that can,
+        stretched to the time there is; then, from the last (at rest), z turning at rest
+        TURN_ROOM in front of the join, so that x plunges while z is clear of the face."""
+        plunge = self._plunge(target[0].tolist(), t_join, x_free)
+        if plunge is None:
+            return
+        z_target = target[1].tolist()
+        late = None
+        for t_go, z_state in starts:
+            fastest = self._ramps.reach("z", z_state, z_target)
+            if fastest is None or fastest.duration > t_join - t_go + 1e-12:
+                continue
+            back = self._ramps.reach("z", z_state, z_target, duration=t_join - t_go)
+            if back is None or abs(back.duration - (t_join - t_go)) > 1e-9:
+                continue
+            yield [[plunge], [(t_go, _moving(t_go, back))]]
+            late = (t_go, z_state, fastest)
+        if late is None or late[1][1] != 0.0:
+            return
+        t_go, z_state, _ = late
+        for via in TURN_ROOM:  # z turns this far in front of the join, at rest, as late as it can
+            z_turn = [z_target[0] - self.spec.direction * via, 0.0, 0.0]
+            there, onto = self._ramps.reach("z", z_state, z_turn), self._ramps.reach("z", z_turn, z_target)
+            if there is None or onto is None:
+                continue
+            t_turn = t_join - math.ceil(onto.duration / self.period - 1e-9) * self.period
+            t_leave = t_go + math.floor((t_turn - there.duration - t_go) / self.period + 1e-9) * self.period
+            if t_leave < t_go:
+                continue
+            there = self._ramps.reach("z", z_state, z_turn, duration=t_turn - t_leave)
+            onto = self._ramps.reach("z", z_turn, z_target, duration=t_join - t_turn)
+            if (there is None or onto is None or abs(there.duration - (t_turn - t_leave)) > 1e-9
+                    or abs(onto.duration - (t_join - t_turn)) > 1e-9):
+                continue
+            yield [[plunge], [(t_leave, _moving(t_leave, there)), (t_turn, _moving(t_turn, onto))]]
+
+    def _plunge(self, x_target: list[float], t_join: float, x_free: float) -> Stretch | None:
+        """x onto the helix state x_target at t_join. The first pass plunges from rest at
+        the clearance radius; later ones turn back on the way out (the retract heads for
+        spec.air_radius), at the latest servo instant from which the plunge still arrives in
+        time, so that x is out of the groove as long as it can be."""
+        period = self.period
+        if not self.cuts:
+            plunge = self._ramps.reach("x", [self.x_clear, 0.0, 0.0], x_target)
+            if plunge is None or t_join - plunge.duration < x_free - 1e-12:
+                return None
+            return (t_join - plunge.duration, _moving(t_join - plunge.duration, plunge))
+        last = self.cuts[-1]
+
+        def fastest(k: int) -> float:
+            state = [float(q[0]) for q in last.retract.at_time(min(k * period, last.retract.duration))]
+            move = self._ramps.reach("x", state, x_target)
+            return math.inf if move is None else move.duration
+
+        n = round((t_join - last.t_out) / period)  # periods from the exit to the join
+
+        def arrives(k: int) -> bool:  # turning back after k periods still lands by t_join
+            return fastest(k) <= (n - k) * period + 1e-12
+
+        lo, hi = 1, n
+        if hi < lo or not arrives(lo):
+            return None
+        while hi - lo > 1:  # the latest turn that still arrives
+            mid = (lo + hi) // 2
+            lo, hi = (mid, hi) if arrives(mid) else (lo, mid)
+        t_turn = last.t_out + lo * period
+        state = [float(q[0]) for q in last.retract.at_time(min(lo * period, last.retract.duration))]
+        plunge = self._ramps.reach("x", state, x_target, duration=t_join - t_turn)
+        if plunge is None or abs(plunge.duration - (t_join - t_turn)) > 1e-9:
+            return None
+        return (t_turn, _moving(t_turn, plunge))
 
     def _on_helix(self, cut: Pass, theta_ref: float) -> Callable[[np.ndarray], np.ndarray]:
         """Cycle times -> helix of the pass joined at theta_ref; x and z ask for the same
@@ -192,18 +285,15 @@ class ThreadCycle:
             yield from zip(range(lo, lo + len(t_joins)), t_joins.tolist(), theta_refs.tolist(), targets)
 
     def _exit(self, cut: Pass, theta_ref: float, t_join: float) -> tuple[float, Trajectory, Trajectory]:
-        """Leave the helix past end_z when the vibration retreats: x out to the clearance
+        """Leave the helix at the first servo instant past end_z (the relief groove, where
+        nothing is cut, whatever the vibration does): x out to the clearance
         radius, z to a time-optimal stop."""
         spec, period = self.spec, self.period
         psi_end = TWO_PI * spec.direction * (spec.end_z - spec.start_z) / spec.pitch
         t_end = (psi_end + theta_ref - self.theta0) / spec.spindle_speed
-        first = max(math.ceil(t_end / period - 1e-9), round(t_join / period) + 1)
-        cycle = TWO_PI / (spec.spindle_speed * cut.per_rev) if cut.per_rev else period
-        t = (first + np.arange(math.ceil(cycle / period) + 1)) * period
-        depth_rate = spec.radial * helix(spec, cut, self.psi(theta_ref, t))[1][:, 0]
-        t_out = float(t[np.flatnonzero(depth_rate <= 1e-12)[0]])
+        t_out = max(math.ceil(t_end / period - 1e-9), round(t_join / period) + 1) * period
         state = self._state(cut, theta_ref, t_out)
-        retract = self._ramps.reach("x", state[0].tolist(), [self.x_clear, 0.0, 0.0])
+        retract = self._ramps.reach("x", state[0].tolist(), [self.x_air, 0.0, 0.0])
         stop = z_to_speed(self.machine, state[1], 0.0)
         return t_out, retract, stop
 

@@ -22,7 +22,7 @@ from cnc_planner.motion.timeline import Piece
 
 
 SETTLE_TIME = 0.05  # s at rest before the cycle: the drives settle after the rapid to its start
-SPINDLE_SETTLE = 0.2  # s after the spindle reaches speed: its following error has died out
+SPINDLE_SETTLE = 0.05  # s after the spindle reaches speed: its following error has died out
 THREAD_PROBE = 0.01  # m: program radius and z steps at which the thread's axis map is probed
 THREAD_AXIS_TOL = 1e-9  # m: the probed axis positions agree with a translation within this
 
@@ -75,9 +75,12 @@ def plan_thread(builder: PlanBuilder, spec: ThreadSpec, servo_period: float = 1e
     spindle = builder.timelines[SPINDLE]
     builder.spindle(spec.spindle_speed)
     builder.rapid({"x": x_origin + spec.clear_radius, "z": z_origin + spec.start_z})
-    t_ready = max(builder.end_time(list(JOINTS)) + SETTLE_TIME, builder.spindle_ready + SPINDLE_SETTLE)
+    # the cycle begins once the spindle turns at speed and the axes have settled; its
+    # first pass joins the helix no sooner than SPINDLE_SETTLE after the spindle's ramp
+    t_ready = max(builder.end_time(list(JOINTS)) + SETTLE_TIME, builder.spindle_ready)
     t0 = math.ceil(t_ready / servo_period - 1e-9) * servo_period
-    cycle = ThreadCycle(spec, machine, servo_period, spindle.position_at(t0), drive)
+    cycle = ThreadCycle(spec, machine, servo_period, spindle.position_at(t0), drive,
+                        settled=builder.spindle_ready + SPINDLE_SETTLE - t0)
     for j, joint in enumerate(JOINTS):
         builder.timelines[joint].add(Piece(t0, cycle.duration, cycle.sampler(j)), cycle.end[j])
     report = []

@@ -20,7 +20,9 @@ from cnc_msgs_py.units import deg
 
 TWO_PI = 2.0 * math.pi
 JOINTS = ("x", "z")  # the axes that cut the thread, locked to the spindle angle
-RETRACT_CLEARANCE = 1e-3  # m: radial clearance above the stock between passes
+RETRACT_CLEARANCE = 1e-3  # m: radial clearance above the stock before and after the cycle
+AIR_CLEARANCE = 5e-3  # m: radial clearance the retract heads for between passes on an external
+# thread; x turns back on its way out in time for the next pass, so this is room, not a stop
 
 
 class ThreadError(JobError):
@@ -99,8 +101,20 @@ class ThreadSpec:
 
     @property
     def clear_radius(self) -> float:
-        """Program x between passes: RETRACT_CLEARANCE outside the surface everywhere on the thread."""
-        return self.major_radius - self.radial * (RETRACT_CLEARANCE - self.taper / 2 * self.end_z)
+        """Program x before and after the cycle: RETRACT_CLEARANCE outside the surface
+        everywhere on the thread."""
+        return self.clear_radius_by(RETRACT_CLEARANCE)
+
+    @property
+    def air_radius(self) -> float:
+        """Program x the retract heads for between passes: AIR_CLEARANCE outside an external
+        thread, so that x leaves the groove at full speed; inside a bore only the clearance
+        radius (its far wall is near)."""
+        return self.clear_radius if self.internal else self.clear_radius_by(AIR_CLEARANCE)
+
+    def clear_radius_by(self, clearance: float) -> float:
+        """Program x ``clearance`` outside the surface everywhere on the thread."""
+        return self.major_radius - self.radial * (clearance - self.taper / 2 * self.end_z)
 
     @property
     def lead_speed(self) -> float:

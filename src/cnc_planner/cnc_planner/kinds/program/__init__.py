@@ -1,0 +1,72 @@
+"""Programs: a G-code program's operations (cnc_msgs_py.gcode), each planned by its own kind
+into one builder, so that the program is one goal: one job id, one status stream counting
+operations, one recording and one report with a section per operation."""
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from cnc_msgs_py.machine import SPINDLE, Machine
+from cnc_msgs_py.schema import JobError
+from cnc_msgs_py.units import to_rpm
+
+from cnc_analysis.recording import Run
+
+from cnc_planner.kinematics import Kinematics
+from cnc_planner.kinds.kind import JobKind, ProgressCount, ReportSection
+from cnc_planner.motion.builder import PlanBuilder
+
+OPERATION = "operation"  # the job_events mark at each operation's start
+
+
+def _kinds() -> dict:
+    from cnc_planner.kinds import KINDS  # the registry holds this kind: looked up when planning
+    return KINDS
+
+
+def plan_program(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin: Kinematics) -> None:
+    """Each operation through its kind's plan, one after the other; an operation's error
+    names the program line it starts at."""
+    kinds = _kinds()
+    for index, (line, op) in enumerate(job.program.operations):
+        kind = kinds[op.kind]
+        try:
+            if kind.layouts is not None and machine.layout not in kind.layouts:
+                raise JobError("kind", f"a {machine.layout} machine cannot run '{op.kind}' operations")
+            if op.spindle_rpm > machine.axes[SPINDLE].max_velocity:
+                raise JobError("spindle_rpm", f"exceeds the spindle's {to_rpm(machine.axes[SPINDLE].max_velocity):.0f} rpm")
+            builder.event(builder.end_time(), OPERATION, index=index, kind=op.kind, line=line)
+            kind.plan(op, machine, builder, Kinematics(machine, op.setup, op.tool))
+        except JobError as err:
+            raise JobError(f"line {line}", f"{op.kind}: {err}") from err
+
+
+def program_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray) -> dict:
+    """One section per operation, judged by its kind's own judge on its share of the feedback."""
+    kinds = _kinds()
+    t = run.feedback_t
+    begin = t[window][0] if window.any() else 0.0
+    starts = sorted(e["stamp_ns"] / 1e9 for e in run.events
+                    if e.get("name") == OPERATION and "stamp_ns" in e and e["stamp_ns"] / 1e9 >= begin - 1e-9)
+    sections = []
+    for index, (line, op) in enumerate(job.program.operations):
+        entry = {"index": index, "line": line, "kind": op.kind}
+        if index < len(starts):
+            part = window & (t >= starts[index] - 1e-9)
+            if index + 1 < len(starts):
+                part &= t < starts[index + 1] - 1e-9
+            entry["duration_s"] = float(t[part][-1] - t[part][0]) if part.any() else 0.0
+            section = kinds[op.kind].report
+            if section is not None and part.any():
+                entry[section.key] = section.judge(run, op, machine, part)
+        sections.append(entry)
+    return {"operations": sections}
+
+
+KIND = JobKind(
+    name="program",
+    plan=plan_program,
+    report=ReportSection("program", program_section),
+    progress=ProgressCount(OPERATION, "operation", total=lambda job: len(job.program.operations)),
+)

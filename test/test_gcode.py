@@ -1,0 +1,206 @@
+"""The G-code front end (cnc_msgs_py.gcode, the program kind).
+
+Round trip: the LinuxCNC programs bench/peer generates from its job documents (G81/G99,
+G83, G76, G71) plan bit for bit the same setpoints as those documents. Bad programs are
+refused at their line, before anything is planned: hand-picked cases and fuzzed ones
+(hypothesis, derandomized) through the planner's Executive, which stays usable after each.
+"""
+from __future__ import annotations
+
+import json
+import re
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from cnc_msgs_py.gcode import machine_named
+from cnc_msgs_py.job import parse_job
+from cnc_msgs_py.machine import load_machine
+from cnc_msgs_py.schema import JobError
+from cnc_planner.executive import Executive
+from cnc_planner.planning import plan_job
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT / "bench" / "peer"), str(ROOT / "bench")]
+import gcode as peer_gcode  # noqa: E402  bench/peer/gcode.py: our jobs as LinuxCNC programs
+import rows as peer_rows  # noqa: E402
+
+FUZZ = settings(derandomize=True, database=None, deadline=None, print_blob=False, max_examples=150,
+                suppress_health_check=[HealthCheck.too_slow])
+LINE = re.compile(r"^line \d+: \S")
+
+
+def program_doc(text: str, machine: str, **block) -> dict:
+    return {"schema": "cnc_job/1", "job_id": "prog-1", "kind": "program", "machine": machine,
+            "program": {"gcode": text, **block}}
+
+
+def same_setpoints(job_doc: dict, prog_doc: dict, machine: str, start_mm: dict[str, float]) -> None:
+    """Both plans sampled every ms (as cnc-plan and bench/plan_hashes sample them): identical."""
+    m = load_machine(machine)
+    start = {k: v * 1e-3 for k, v in start_mm.items()}
+    a = plan_job(parse_job(job_doc), m, start)
+    b = plan_job(parse_job(prog_doc), m, start)
+    assert a.duration == b.duration
+    t = np.arange(0.0, a.duration, 1e-3)
+    for x, y in zip(a.sample(t), b.sample(t)):
+        assert np.array_equal(x, y)
+
+
+def _row(name: str):
+    return next(r for r in peer_rows.all_rows() if r.name == name)
+
+
+@pytest.mark.parametrize("name", ["drill X    p5 d3", "drill grid p40 d30"])
+def test_g81_g99_round_trip(name):
+    row = _row(name)
+    text = peer_gcode.drill_program(row.name, row.doc, "G99")
+    same_setpoints(row.doc, program_doc(text, "mill3"), "mill3", row.start)
+
+
+def test_g83_round_trip():
+    row = _row("deep holes 5xD G83")
+    same_setpoints(row.doc, program_doc(peer_gcode.peck_program(row.name, row.doc), "mill3"), "mill3", row.start)
+
+
+def test_g76_round_trip_with_and_without_our_vibration():
+    row = _row("thread M12x1.75")
+    text = peer_gcode.thread_program(row.name, row.reference_doc, peer_rows.THREAD_CLEARANCE_MM, back_to_start=True)
+    start = {"x": row.start["x"], "z": row.start["z"]}
+    same_setpoints(row.reference_doc, program_doc(text, "lathe", start=start), "lathe", row.start)
+    vibrated = text.replace("\nG76", "\n(CNC,VIBRATION D=1.5 Q=1.2 PHASE=180 DSTEP=0)\nG76", 1)
+    same_setpoints(row.doc, program_doc(vibrated, "lathe", start=start), "lathe", row.start)
+
+
+def test_g71_round_trip_from_the_real_stock():
+    row = _row("rough cone+steps")
+    text = peer_gcode.turn_program(row.name, row.doc)
+    prog = program_doc(text, "lathe", start=row.start, stock=row.doc["turn"]["stock"])
+    same_setpoints(row.doc, prog, "lathe", row.start)
+
+
+def test_g98_keeps_travels_at_the_initial_z():
+    row = _row("drill X    p5 d3")
+    text = peer_gcode.drill_program(row.name, row.doc, "G98")
+    job = parse_job(program_doc(text, "mill3", start=row.start))
+    (_, op), = job.program.operations
+    assert op.drill.clearance_z == pytest.approx(peer_rows.CLEARANCE_MM * 1e-3)
+    with pytest.raises(JobError, match=r"^line 4: G98: the initial Z is unknown"):
+        parse_job(program_doc(text, "mill3"))
+
+
+def test_a_program_of_several_operations_is_one_plan():
+    text = """%
+(CNC,MACHINE mill3)
+G21 G90 G17 G94
+T1 M6 G43
+M3 S3000
+G0 X0 Y0 Z5
+G99 G81 X0 Y0 Z-3 R2 F1200
+X10
+G80
+G0 Z10
+G98 G83 X20 Y0 Z-8 R2 Q2 F600
+X30
+G80
+M5
+M2
+%"""
+    assert machine_named(text) == "mill3"
+    doc = program_doc(text, "mill3", tool_table=[{"tool": 1, "length": 0.0, "diameter": 6.0}])
+    job = parse_job(doc)
+    assert [(line, op.kind) for line, op in job.program.operations] == [
+        (6, "move"), (7, "drill"), (10, "move"), (11, "drill")]
+    drill2 = job.program.operations[3][1].drill
+    assert drill2.peck.depth == pytest.approx(2e-3) and drill2.clearance_z == pytest.approx(10e-3)
+    plan = plan_job(job, load_machine("mill3"), {"x": 0.0, "y": 0.0, "z": 0.02})
+    marks = [e for e in plan.events if e.name == "operation"]
+    assert [e.data["line"] for e in marks] == [6, 7, 10, 11]
+    assert all(a.time <= b.time for a, b in zip(marks, marks[1:]))
+
+
+BAD = [
+    ("G21 G90\nG0 X0 Y0 Z5\nG1 X10 F100\nG20 G21\nM2", "line 4: G21: conflicts with G20"),
+    ("G21 G90\nG0 X0 Y0 Z5\nM3 S1000\nG81 X0 Y0 Z-3 F100\nM2", "line 4: G81: needs R"),
+    ("G21 G90 G17\nG0 X0 Y0\nG2 X10 Y0 R4 F100\nM2", "line 3: G2: radius 4 mm cannot reach the end"),
+    ("G21\nG0 X0 Y0 Z5\nG1 X1 ^45 F100\nM2", "line 3: ^: polar coordinates"),
+    ("G21\nG0 X0 Y0 Z5\nG96 S100\nM2", "line 3: G96: constant surface speed cannot be held"),
+    ("G21\nG0 X0 Y0 Z5\nG1 X3 F100", "line 4: end of file: the program ends without M2 or M30"),
+    ("G21\nG0 X0 Y0 Z5\nG1 X3\nM2", "line 3: G1: no feed given (F)"),
+    ("G21\nG0 X0 Y0 Z5 Q3\nM2", "line 2: Q3: not used by anything in this line"),
+    ("G21\no100 while [1]\nM2", "line 2: ["),
+    ("G21\nM3 S500\nG0 X0 Y0 Z5\nG81 X0 Y0 Z-3 R2 F0.5\nM2", "line 4: drill: drill.feed"),
+]
+
+
+@pytest.mark.parametrize("text,reason", BAD)
+def test_bad_programs_are_refused_by_line_and_word(text, reason):
+    with pytest.raises(JobError) as err:
+        parse_job(program_doc(text, "mill3"))
+    assert str(err.value).startswith(reason), str(err.value)
+    assert err.value.field.startswith("line ")
+
+
+# --- fuzzed programs -------------------------------------------------------------------------
+GOOD = """G21 G90 G17 G94
+M3 S3000
+G0 X0 Y0 Z5
+G99 G81 X0 Y0 Z-3 R2 F1200
+X10 Y0
+G80
+G0 Z10
+G1 X20 F600
+M5
+M2"""
+GOOD_LINES = GOOD.splitlines()
+CONFLICTS = ["G20 G21", "G90 G91", "G0 G1 X1", "G17 G18", "G94 G95", "M3 M5", "G98 G99", "G81 G83 X1",
+             "G54 G55", "G7 G8", "G43 G49", "G90.1 G91.1"]
+UNSUPPORTED = ["G19", "G41 D1", "G42", "G96 S100", "M0", "M1", "#1=2", "G1 X[1+2]", "G1 ^10 @5", "A10", "G33 Z1 K1",
+               "G84 Z-1 R1", "G93", "O100 WHILE [1]", "/G1 X1", "G28", "G38.2 Z-1", "G1 X1 X2", "N5 N6", "M4",
+               "G81 X0 Y0 Z-3 F100", "G83 X0 Y0 Z-3 R2 F100", "G2 X5 Y5 R1 F100", "G76 P1 Z-1 I-1 J0.1 K0.5",
+               "G71 Q5 I1", "G1 Y5", "T99 M6", "G55", "(CNC,WOBBLE ON)", "G1 F-5 X1", "(unclosed", "G0 X1 Q2"]
+
+
+@st.composite
+def bad_programs(draw) -> tuple[str, int]:
+    """A bad program and the line it must be refused at (or before)."""
+    how = draw(st.sampled_from(["truncate", "conflict", "unsupported", "garbage"]))
+    lines = list(GOOD_LINES)
+    if how == "truncate":  # cut before its M2: LinuxCNC refuses a program without an end
+        cut = draw(st.integers(1, len(lines) - 1))
+        tail = draw(st.text(alphabet="GXYZ0123456789. ", max_size=6))
+        lines = lines[:cut] + ([tail] if tail.strip() else [])
+        return "\n".join(lines), len(lines) + 1
+    at = draw(st.integers(1, len(lines) - 1))  # after line `at`, before the M2
+    if how == "conflict":
+        word = draw(st.sampled_from(CONFLICTS))
+    elif how == "unsupported":
+        word = draw(st.sampled_from(UNSUPPORTED))
+    else:
+        word = draw(st.sampled_from(["G", "X", "Q", "@", "G1 X", "M", "%%", "G999", "M77", "Z--1", "K"]))
+    lines.insert(at, word)
+    return "\n".join(lines), at + 1
+
+
+_executive = Executive(load_machine("mill3"))
+
+
+@FUZZ
+@given(bad_programs())
+def test_fuzzed_programs_are_refused_with_their_line_and_plan_nothing(case):
+    text, line = case
+    status = _executive.submit(json.dumps(program_doc(text, "mill3")))
+    assert status.state == "rejected", text
+    assert LINE.match(status.reason), status.reason
+    assert int(status.reason.split(":")[0].split()[1]) <= line, (status.reason, text)
+    assert "\n" not in status.reason
+
+
+def test_the_executive_plans_a_good_program_after_the_fuzz():
+    status = _executive.submit(json.dumps(program_doc(GOOD, "mill3")))
+    assert status.state == "accepted", status.reason

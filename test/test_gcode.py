@@ -88,7 +88,7 @@ def test_g98_keeps_travels_at_the_initial_z():
     row = _row("drill X    p5 d3")
     text = peer_gcode.drill_program(row.name, row.doc, "G98")
     job = parse_job(program_doc(text, "mill3", start=row.start))
-    (_, op), = job.program.operations
+    (_, op, _), = job.program.operations
     assert op.drill.clearance_z == pytest.approx(peer_rows.CLEARANCE_MM * 1e-3)
     with pytest.raises(JobError, match=r"^line 4: G98: the initial Z is unknown"):
         parse_job(program_doc(text, "mill3"))
@@ -114,7 +114,7 @@ M2
     assert machine_named(text) == "mill3"
     doc = program_doc(text, "mill3", tool_table=[{"tool": 1, "length": 0.0, "diameter": 6.0}])
     job = parse_job(doc)
-    assert [(line, op.kind) for line, op in job.program.operations] == [
+    assert [(line, op.kind) for line, op, _ in job.program.operations] == [
         (6, "move"), (7, "drill"), (10, "move"), (11, "drill")]
     drill2 = job.program.operations[3][1].drill
     assert drill2.peck.depth == pytest.approx(2e-3) and drill2.clearance_z == pytest.approx(10e-3)
@@ -204,3 +204,16 @@ def test_fuzzed_programs_are_refused_with_their_line_and_plan_nothing(case):
 def test_the_executive_plans_a_good_program_after_the_fuzz():
     status = _executive.submit(json.dumps(program_doc(GOOD, "mill3")))
     assert status.state == "accepted", status.reason
+
+
+# --- the pages' and config's programs ----------------------------------------------------------
+def _ngc_blocks() -> list[str]:
+    return re.findall(r"```ngc\n(.*?)```", (ROOT / "docs" / "gcode.md").read_text(), re.S)
+
+
+@pytest.mark.parametrize("text", _ngc_blocks() + [p.read_text() for p in sorted((ROOT / "config" / "programs").glob("*.ngc"))])
+def test_every_documented_program_translates_and_plans(text):
+    machine = machine_named(text)
+    job = parse_job(program_doc(text + ("" if "M2" in text else "\nM2\n"), machine))
+    assert job.program.operations
+    assert plan_job(job, load_machine(machine)).duration > 0.0

@@ -41,8 +41,8 @@ def check(job: SimpleNamespace) -> None:
 
 
 def translate_program(doc: dict, job: SimpleNamespace) -> None:
-    """The program's operations as parsed jobs (SI) in ``job.program.operations``: a list of
-    (line, job); any error is ``line N: <word>: <reason>``."""
+    """The program's operations in ``job.program.operations``: a list of (line, job in SI,
+    its document in mm); any error is ``line N: <word>: <reason>``."""
     from ..gcode import Context, GcodeError, translate
     from ..job import parse_job  # the job schema holds this module: imported when used
     block = doc["program"]
@@ -57,7 +57,7 @@ def translate_program(doc: dict, job: SimpleNamespace) -> None:
     operations = []
     for op in translate(block["gcode"], ctx):
         try:
-            operations.append((op.line, parse_job(op.doc)))
+            operations.append((op.line, parse_job(op.doc), op.doc))
         except GcodeError:
             raise
         except JobError as err:

@@ -3,6 +3,8 @@ into one builder, so that the program is one goal: one job id, one status stream
 operations, one recording and one report with a section per operation."""
 from __future__ import annotations
 
+import json
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -29,7 +31,7 @@ def plan_program(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, k
     """Each operation through its kind's plan, one after the other; an operation's error
     names the program line it starts at."""
     kinds = _kinds()
-    for index, (line, op) in enumerate(job.program.operations):
+    for index, (line, op, _) in enumerate(job.program.operations):
         kind = kinds[op.kind]
         try:
             if kind.layouts is not None and machine.layout not in kind.layouts:
@@ -50,7 +52,7 @@ def program_section(run: Run, job: SimpleNamespace, machine: Machine, window: np
     starts = sorted(e["stamp_ns"] / 1e9 for e in run.events
                     if e.get("name") == OPERATION and "stamp_ns" in e and e["stamp_ns"] / 1e9 >= begin - 1e-9)
     sections = []
-    for index, (line, op) in enumerate(job.program.operations):
+    for index, (line, op, doc) in enumerate(job.program.operations):
         entry = {"index": index, "line": line, "kind": op.kind}
         if index < len(starts):
             part = window & (t >= starts[index] - 1e-9)
@@ -59,7 +61,8 @@ def program_section(run: Run, job: SimpleNamespace, machine: Machine, window: np
             entry["duration_s"] = float(t[part][-1] - t[part][0]) if part.any() else 0.0
             section = kinds[op.kind].report
             if section is not None and part.any():
-                entry[section.key] = section.judge(run, op, machine, part)
+                # a kind's judge may read its goal as sent (the thread's, in mm): the operation's
+                entry[section.key] = section.judge(replace(run, goals=[json.dumps(doc)]), op, machine, part)
         sections.append(entry)
     return {"operations": sections}
 

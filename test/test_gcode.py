@@ -217,3 +217,25 @@ def test_every_documented_program_translates_and_plans(text):
     job = parse_job(program_doc(text + ("" if "M2" in text else "\nM2\n"), machine))
     assert job.program.operations
     assert plan_job(job, load_machine(machine)).duration > 0.0
+
+
+# --- over topics --------------------------------------------------------------------------------
+def test_a_mill_program_of_g81_g99_and_g83_g98_runs_as_one_goal_over_topics(tmp_path):
+    """cnc-run on a .ngc file: one job, statuses counting operations, one report whose program
+    section holds each operation's own drill section, judged on the recorded feedback."""
+    from support import cnc, load_report
+    out = tmp_path / "run"
+    result = cnc("cnc-run", ROOT / "config" / "programs" / "mill_g81_g83.ngc", "--out", out)
+    assert result.returncode == 0, result.stderr[-2000:]
+    report = load_report(out)
+    assert report["state"] == "succeeded" and report["job_id"] == "mill_g81_g83"
+    ops = report["program"]["operations"]
+    assert [(op["line"], op["kind"]) for op in ops] == [(8, "move"), (9, "drill"), (13, "move"), (14, "drill")]
+    for op, depth, holes in ((ops[1], 3.0, 3), (ops[3], 8.0, 2)):
+        drill = op["drill"]
+        assert drill["safety_violations"] == 0  # X/Y never off a hole below R, on feedback
+        assert len(drill["holes"]) == holes
+        for hole in drill["holes"]:
+            assert abs(hole["depth_mm"] - depth) <= 0.005  # every hole at its own depth within 5 um
+    assert ops[3]["drill"]["pecks"]["reentries"] == 6  # Q2 into 8 mm: 3 re-entries per hole
+    assert "operation" in result.stdout and "4/4" in result.stdout

@@ -239,3 +239,40 @@ def test_a_mill_program_of_g81_g99_and_g83_g98_runs_as_one_goal_over_topics(tmp_
             assert abs(hole["depth_mm"] - depth) <= 0.005  # every hole at its own depth within 5 um
     assert ops[3]["drill"]["pecks"]["reentries"] == 6  # Q2 into 8 mm: 3 re-entries per hole
     assert "operation" in result.stdout and "4/4" in result.stdout
+
+
+def test_g76_in_inches_radius_mode_with_degression():
+    """LinuxCNC's G76 as its documentation writes it, in inches and radius mode (G8), degression
+    R1.5: our thread cycle with LinuxCNC's pass depths J * k^(1/R), then 2 spring passes."""
+    text = """G20 G18 G8 G90 G94
+M3 S600
+G0 X0.3 Z0.1
+G76 P0.0625 Z-0.75 I-0.05 J0.005 R1.5 K0.04 Q29.5 H2 E0 L0
+M5
+M2"""
+    job = parse_job(program_doc(text, "lathe"))
+    assert [op.kind for _, op, _ in job.program.operations] == ["move", "thread"]
+    line, op, doc = job.program.operations[1]
+    t = doc["thread"]
+    assert line == 4 and op.kind == "thread"
+    assert t["major_radius"] == pytest.approx(0.25 * 25.4) and t["pitch"] == pytest.approx(1.5875)
+    assert t["start_z"] == pytest.approx(2.54) and t["end_z"] == pytest.approx(-19.05)
+    k = np.arange(1, len(t["depths"]))
+    assert t["depths"][:-1] == pytest.approx(0.127 * k ** (1 / 1.5))
+    assert t["depths"][-1] == pytest.approx(1.016) and len(t["depths"]) == 23
+    assert t["spring_passes"] == 2 and t["infeed_angle"] == 29.5
+    assert plan_job(job, load_machine("lathe")).duration > 0.0
+
+
+def test_g71_with_p_q_blocks_in_diameter_mode():
+    """G71 P/Q in diameter mode: the contour's chamfer and fillet become the profile (X halved,
+    the G2 fillet a concave arc), G71's own stock the cylinder at its start point."""
+    text = (ROOT / "config" / "programs" / "lathe_g71_g76.ngc").read_text()
+    job = parse_job(program_doc(text, "lathe"))
+    line, op, doc = job.program.operations[1]
+    turn = doc["turn"]
+    assert line == 10 and op.kind == "turn"
+    assert turn["stock"] == [[5.0, 10.0], [-25.0, 10.0]] and turn["origin"] == [7.0, 11.0]
+    assert turn["profile"][:3] == [[5.0, 5.0], [-1.0, 6.0], [-16.0, 6.0]]
+    assert turn["profile"][3] == {"arc_to": [-18.0, 8.0], "center": [-16.0, 8.0], "radius": -2.0}
+    assert turn["feed"] == pytest.approx(0.15) and turn["depth_of_cut"] == 1.5

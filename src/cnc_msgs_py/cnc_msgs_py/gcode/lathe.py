@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 from . import arcs
 from .cycles import clip_to_stock, g76_depths, thread_passes
 from .lexer import Block, GcodeError, word_text
+from .modal import check_groups
 
 if TYPE_CHECKING:
     from .translate import Translator
@@ -74,7 +75,6 @@ def _profile(tr: "Translator", blocks: list[Block], start: tuple[float, float], 
     out: list = []
     motion = None
     for b in blocks:
-        from .modal import check_groups
         check_groups(b)
         g = [round(v, 1) for v in b.g]
         for code in g:

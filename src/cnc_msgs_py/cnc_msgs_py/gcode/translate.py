@@ -14,7 +14,7 @@ from . import arcs
 from .drilling import hole
 from .lathe import g71, g76
 from .lexer import Block, GcodeError, read_program, word_text
-from .modal import DRILL_CYCLES, Modal, check_groups
+from .modal import DRILL_CYCLES, MOTION, Modal, check_groups
 
 DIRECTIVE = "CNC,"  # our comments: (CNC,VIBRATION D=1.5 Q=1.2), (CNC,OVERLAP OFF), (CNC,MACHINE mill3)
 VIBRATION_KEYS = {"D": "D", "Q": "Q", "E": "E", "R": "R", "PHASE": "phase_shift", "DSTEP": "D_step"}
@@ -55,7 +55,7 @@ def directives(comments: list[str]) -> list[tuple[str, list[str]]]:
 
 def machine_named(text: str) -> str | None:
     """The machine a program names with ``(CNC,MACHINE name)``, if any."""
-    for n, raw in enumerate(text.splitlines(), start=1):
+    for raw in text.splitlines():
         for c in raw.split("(")[1:]:
             for name, args in directives([c.split(")")[0]]):
                 if name == "MACHINE" and args:
@@ -237,7 +237,7 @@ class Translator:
     # ---- motion
     def _motion(self, b: Block, g: list[float], used: set[str], body: list[Block], index: int) -> int:
         s = self.state
-        motion = next((c for c in g if c in {0.0, 1.0, 2.0, 3.0, 71.0, 72.0, 73.0, 76.0, 80.0, 81.0, 82.0, 83.0}), None)
+        motion = next((c for c in g if c in MOTION), None)
         if motion == 80.0:
             s.motion, self.cycle = None, {}
             if b.has_axes():
@@ -356,8 +356,7 @@ class Translator:
         self._flush()
         doc = self._common(kind)
         doc[kind] = block
-        vib = kind != "move" or any("linear" in m for m in block)
-        if self.vibration is not None and vib:
+        if self.vibration is not None and kind != "move":  # a move operation takes it once it has a feed move
             doc["vibration"] = dict(self.vibration)
         self.current, self.current_key = Operation(line, doc), (kind, key)
         return block

@@ -276,3 +276,19 @@ def test_g71_with_p_q_blocks_in_diameter_mode():
     assert turn["profile"][:3] == [[5.0, 5.0], [-1.0, 6.0], [-16.0, 6.0]]
     assert turn["profile"][3] == {"arc_to": [-18.0, 8.0], "center": [-16.0, 8.0], "radius": -2.0}
     assert turn["feed"] == pytest.approx(0.15) and turn["depth_of_cut"] == 1.5
+
+
+def test_a_speed_change_between_operations_happens_after_the_first_one():
+    """S1500 roughing then S600 threading: the spindle turns at 1500 rpm until the roughing
+    ends, then slows to 600 rpm before the thread starts."""
+    text = (ROOT / "config" / "programs" / "lathe_g71_g76.ngc").read_text()
+    m = load_machine("lathe")
+    plan = plan_job(parse_job(program_doc(text, "lathe")), m, {"x": 0.03, "z": 0.0})
+    marks = [(e.data["kind"], e.time) for e in plan.events if e.name == "operation"]
+    assert [k for k, _ in marks] == ["move", "turn", "move", "thread", "move"]
+    t_turn, t_after, t_thread = marks[1][1], marks[2][1], marks[3][1]
+    passes = [e.time for e in plan.events if e.name == "thread_pass" and e.time > t_thread]
+    t = np.concatenate([np.linspace(t_turn + 1.0, t_after - 1e-3, 50), [passes[0] if passes else t_thread + 3.0]])
+    _, v, _ = plan.sample(t)
+    rpm = v[:, plan.joints.index("spindle")] * 60.0 / (2.0 * np.pi)
+    assert np.allclose(rpm[:-1], 1500.0) and rpm[-1] == pytest.approx(600.0)

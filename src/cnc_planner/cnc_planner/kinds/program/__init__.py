@@ -55,6 +55,17 @@ def plan_program(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, k
             raise JobError(f"line {line}", f"{op.kind}: {err}") from err
 
 
+def _operation_run(run: Run, part: np.ndarray, t0: float, t1: float, doc: dict) -> Run:
+    """The recording as one operation's judge must see it: only the operation's share of the
+    feedback and commands (a judge may look past its window, where the next operation cuts),
+    and the operation's own goal (a judge may read the goal as sent, in mm)."""
+    sent = (run.command_t >= t0 - 1e-9) & (run.command_t < t1 - 1e-9)
+    return replace(run, feedback_t=run.feedback_t[part], feedback=run.feedback[part],
+                   feedback_velocity=run.feedback_velocity[part], command_t=run.command_t[sent],
+                   command=run.command[sent], command_velocity=run.command_velocity[sent],
+                   goals=[json.dumps(doc)])
+
+
 def program_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray) -> dict:
     """One section per operation, judged by its kind's own judge on its share of the feedback."""
     kinds = _kinds()
@@ -66,14 +77,13 @@ def program_section(run: Run, job: SimpleNamespace, machine: Machine, window: np
     for index, (line, op, doc) in enumerate(job.program.operations):
         entry = {"index": index, "line": line, "kind": op.kind}
         if index < len(starts):
-            part = window & (t >= starts[index] - 1e-9)
-            if index + 1 < len(starts):
-                part &= t < starts[index + 1] - 1e-9
+            t1 = starts[index + 1] if index + 1 < len(starts) else np.inf
+            part = window & (t >= starts[index] - 1e-9) & (t < t1 - 1e-9)
             entry["duration_s"] = float(t[part][-1] - t[part][0]) if part.any() else 0.0
             section = kinds[op.kind].report
             if section is not None and part.any():
-                # a kind's judge may read its goal as sent (the thread's, in mm): the operation's
-                entry[section.key] = section.judge(replace(run, goals=[json.dumps(doc)]), op, machine, part)
+                own = _operation_run(run, part, starts[index], t1, doc)
+                entry[section.key] = section.judge(own, op, machine, np.ones(len(own.feedback_t), dtype=bool))
         sections.append(entry)
     return {"operations": sections}
 

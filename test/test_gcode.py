@@ -292,3 +292,40 @@ def test_a_speed_change_between_operations_happens_after_the_first_one():
     _, v, _ = plan.sample(t)
     rpm = v[:, plan.joints.index("spindle")] * 60.0 / (2.0 * np.pi)
     assert np.allclose(rpm[:-1], 1500.0) and rpm[-1] == pytest.approx(600.0)
+
+
+LATHE_PROGRAM = """(CNC,MACHINE lathe)
+G21 G18 G7 G90 G94
+M3 S1500
+G0 X18 Z3
+F300
+G71 P10 Q20 X16 Z2 D0.1 I1.0 R0.5
+N10 G1 X10 Z2
+G1 X12 Z-1
+N20 G1 Z-12
+G0 X18 Z3
+M3 S1000
+G0 X14 Z2
+G76 P1.5 Z-8 I-2 J0.6 R2 K1.84 Q29.5 H1 E0 L0
+G0 X18
+M5
+M2
+"""
+
+
+def test_a_lathe_program_of_g71_and_g76_runs_as_one_goal_over_topics(tmp_path):
+    """Rough (G71 P/Q, diameter mode, a chamfer) at 1500 rpm then thread (G76, degression)
+    at 1000 rpm, one goal: the turn section finds no gouge, the thread reaches full depth
+    along its 29.5 deg flank, each judged on its own operation's feedback."""
+    from support import cnc, load_report
+    path = tmp_path / "rough_thread.ngc"
+    path.write_text(LATHE_PROGRAM)
+    out = tmp_path / "run"
+    result = cnc("cnc-run", path, "--out", out)
+    assert result.returncode == 0, result.stderr[-2000:]
+    ops = load_report(out)["program"]["operations"]
+    assert [op["kind"] for op in ops] == ["move", "turn", "move", "thread", "move"]
+    turn, thread = ops[1]["turn"], ops[3]["thread"]
+    assert turn["max_gouge_part_mm"] <= 0.005 and turn["max_gouge_commanded_mm"] == 0.0
+    assert thread["full_depth"] and thread["doc_never_grows"]
+    assert thread["infeed_angle_deg"] == pytest.approx(29.5, abs=0.01)

@@ -329,3 +329,26 @@ def test_a_lathe_program_of_g71_and_g76_runs_as_one_goal_over_topics(tmp_path):
     assert turn["max_gouge_part_mm"] <= 0.005 and turn["max_gouge_commanded_mm"] == 0.0
     assert thread["full_depth"] and thread["doc_never_grows"]
     assert thread["infeed_angle_deg"] == pytest.approx(29.5, abs=0.01)
+
+
+def test_cancel_mid_program_ends_in_a_controlled_stop(tmp_path):
+    """A program canceled in its first drill operation: canceled, the commanded motion
+    jerk-limited to rest within the axes' acceleration limits, the program not finished."""
+    from cnc_analysis.recording import read_run
+    from cnc_planner.runner import Session
+    from support import running_past
+    doc = yaml.safe_load((ROOT / "config" / "jobs" / "program_mill3.yaml").read_text())
+    machine = load_machine("mill3")
+    with Session("mill3", tmp_path / "bag") as session:
+        session.submit(json.dumps(doc))
+        running_past(session, doc["job_id"], 0.3)
+        session.cancel(doc["job_id"])
+        final = session.wait(doc["job_id"], 60)
+        assert final["state"] == "canceled", final
+        session.settle(final)
+    run = read_run(tmp_path / "bag")
+    for axis in ("x", "y", "z"):
+        v = run.command_velocity[:, run.column(axis)]
+        assert np.abs(np.diff(v) / np.diff(run.command_t)).max() <= machine.axes[axis].max_acceleration * 1.01
+        assert abs(run.feedback_velocity[-1, run.column(axis)]) < 1e-6
+    assert run.command[-1, run.column("x")] < 0.040 - 1e-4  # stopped before the last hole

@@ -73,6 +73,10 @@ def field_path_known(doc, reason: str) -> bool:
     breaks a rule)."""
     if reason.startswith(WHOLE_DOCUMENT):
         return True
+    line = re.match(r"line (\d+): ", reason)
+    if line and isinstance(doc, dict) and isinstance(doc.get("program"), dict):  # a G-code program's line
+        text = doc["program"].get("gcode")
+        return isinstance(text, str) and 1 <= int(line.group(1)) <= len(text.splitlines()) + 1
     node, spec, rest, first = doc, JOB, reason, True
     while True:
         if not first:

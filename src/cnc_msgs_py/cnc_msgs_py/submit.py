@@ -9,11 +9,11 @@ from __future__ import annotations
 import json
 import os
 import sys
-from pathlib import Path
 from typing import Any, Callable
 
 from . import topics
 from .client import CncClient, CncClientError
+from .gcode.document import job_document
 from .job import load_job
 from .progress import Progress
 from .schema import JobError
@@ -26,7 +26,8 @@ def main(argv: list[str] | None = None) -> int:
         epilog="Exit codes: 0 succeeded (or canceled as asked by --cancel-after), 1 rejected, aborted or "
                "canceled, 2 bad job or arguments, 3 no planner or timeout. The final status (cnc_status/1, "
                "JSON) is printed on stdout; progress goes to stderr.")
-    parser.add_argument("job", help="job document: a YAML or JSON file")
+    parser.add_argument("job", help="job document: a YAML or JSON file, or a G-code program (.ngc)")
+    parser.add_argument("--machine", help="the machine a program (or job) runs on when it names none")
     parser.add_argument("--namespace", default=topics.NAMESPACE, help="the nodes' namespace (default /cnc)")
     parser.add_argument("--timeout", type=float, default=600.0, help="wall-clock limit for the job (s)")
     parser.add_argument("--cancel-after", type=float, default=None, metavar="S",
@@ -37,7 +38,7 @@ def main(argv: list[str] | None = None) -> int:
         if value is not None and not value > 0:
             return _fail(f"--{name.replace('_', '-')}: must be > 0 s, got {value:g}")
     try:
-        doc = load_job(Path(args.job))
+        doc = load_job(job_document(args.job, args.machine))
     except JobError as err:
         return _fail(f"{args.job}: {err}" if err.field else str(err))
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")

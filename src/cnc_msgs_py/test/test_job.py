@@ -97,7 +97,16 @@ PATH_DOC = {
     "path": {"points": [[0, 0, 5], [10, 0, 0], [10, 10, 0]], "feed": 600},
 }
 
-DOCS = {"drill": DRILL_DOC, "move": MOVE_DOC, "turn": TURN_DOC, "thread": THREAD_DOC, "path": PATH_DOC}
+PROGRAM_DOC = {
+    "schema": "cnc_job/1",
+    "job_id": "program-001",
+    "kind": "program",
+    "machine": "mill3",
+    "program": {"gcode": "G21 G90 G17\nM3 S3000\nG0 X0 Y0 Z5\nG99 G81 X0 Y0 Z-5 R2 F1200\nX10\nX20\nG80\nM2\n"},
+}
+
+DOCS = {"drill": DRILL_DOC, "move": MOVE_DOC, "turn": TURN_DOC, "thread": THREAD_DOC, "path": PATH_DOC,
+        "program": PROGRAM_DOC}
 
 
 def doc(kind: str) -> dict:

@@ -12,7 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from cnc_msgs_py.job import job_id_of, load_job_file, parse_job
+from cnc_msgs_py.gcode.document import job_document
+from cnc_msgs_py.job import job_id_of, parse_job
 from cnc_msgs_py.machine import MachineError, load_machine
 from cnc_msgs_py.progress import Progress
 from cnc_msgs_py.schema import JobError
@@ -41,7 +42,8 @@ def _rejected_report(job_id: str, reason: str) -> dict:
 def run_main(argv: list[str] | None = None) -> int:
     """cnc-run JOB [--out DIR]: run a job on the emulated machine and report on it."""
     parser = tool_parser("cnc-run", "cnc_planner", description=run_main.__doc__)
-    parser.add_argument("job", help="job document (YAML or JSON)")
+    parser.add_argument("job", help="job document (YAML or JSON) or G-code program (.ngc)")
+    parser.add_argument("--machine", help="the machine a program (or job) runs on when it names none")
     parser.add_argument("--out", type=Path, help="output directory (default runs/<timestamp>)")
     parser.add_argument("--timeout", type=float, default=900.0, help="wall-clock limit (s)")
     parser.add_argument("--namespace", default=NAMESPACE, help=f"the machine's namespace (default {NAMESPACE})")
@@ -50,7 +52,7 @@ def run_main(argv: list[str] | None = None) -> int:
     if (out / "bag").exists():
         return _fail("cnc-run", f"--out: {out / 'bag'} exists already; choose a new directory")
     try:
-        doc = load_job_file(args.job)
+        doc = job_document(args.job, args.machine)
         machine = load_machine(doc.get("machine") if isinstance(doc.get("machine"), str) else "")
     except (JobError, MachineError) as err:
         reason = f"machine: {err}" if isinstance(err, MachineError) else str(err)
@@ -125,12 +127,13 @@ def cell_main(argv: list[str] | None = None) -> int:
 def plan_main(argv: list[str] | None = None) -> int:
     """cnc-plan JOB --out DIR: plan offline (no ROS) and write setpoints.npz + summary.json."""
     parser = tool_parser("cnc-plan", "cnc_planner", description=plan_main.__doc__)
-    parser.add_argument("job")
+    parser.add_argument("job", help="job document (YAML or JSON) or G-code program (.ngc)")
+    parser.add_argument("--machine", help="the machine a program (or job) runs on when it names none")
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--period", type=float, default=0.001, help="interpolation period (s)")
     args = parser.parse_args(argv)
     try:
-        job = parse_job(load_job_file(args.job))
+        job = parse_job(job_document(args.job, args.machine))
         machine = load_machine(job.machine)
         plan = plan_job(job, machine)
     except (JobError, MachineError) as err:

@@ -1,0 +1,95 @@
+"""Modal groups and the interpreter's modal state (LinuxCNC 2.9 meaning).
+
+Two words of one modal group in one line are a conflict and refused; a G or M code this
+front end does not implement is refused with why, never ignored.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from .lexer import Block, GcodeError, word_text
+
+MOTION = {0.0, 1.0, 2.0, 3.0, 71.0, 72.0, 73.0, 76.0, 80.0, 81.0, 82.0, 83.0}
+DRILL_CYCLES = {73.0, 81.0, 82.0, 83.0}
+G_GROUPS: dict[float, str] = {
+    **{g: "motion" for g in MOTION},
+    4.0: "non-modal",
+    17.0: "plane", 18.0: "plane",
+    7.0: "lathe diameter", 8.0: "lathe diameter",
+    20.0: "units", 21.0: "units",
+    40.0: "cutter compensation",
+    43.0: "tool length", 49.0: "tool length",
+    54.0: "work offset", 55.0: "work offset", 56.0: "work offset", 57.0: "work offset", 58.0: "work offset",
+    59.0: "work offset",
+    61.0: "path control", 61.1: "path control", 64.0: "path control",
+    90.0: "distance", 91.0: "distance",
+    90.1: "arc distance", 91.1: "arc distance",
+    94.0: "feed mode", 95.0: "feed mode",
+    97.0: "spindle speed mode",
+    98.0: "canned cycle return", 99.0: "canned cycle return",
+}
+G_REFUSED: dict[float, str] = {
+    19.0: "the YZ plane is not supported (G17 mills, G18 turns)",
+    33.0: "use G76: single threading moves are not supported",
+    41.0: "cutter radius compensation is not supported",
+    42.0: "cutter radius compensation is not supported",
+    70.0: "the finishing cycle is not supported yet: G71 ends along the contour itself",
+    84.0: "tapping is not supported",
+    93.0: "inverse time feed is not supported",
+    96.0: "constant surface speed cannot be held: an operation turns at one rpm (use G97 and S)",
+}
+M_GROUPS: dict[float, str] = {2.0: "stop", 30.0: "stop", 3.0: "spindle", 4.0: "spindle", 5.0: "spindle",
+                              6.0: "tool change", 7.0: "coolant", 8.0: "coolant", 9.0: "coolant"}
+M_REFUSED: dict[float, str] = {
+    0.0: "a program pause cannot be kept in one planned goal",
+    1.0: "an optional stop cannot be kept in one planned goal",
+    4.0: "our operations turn the spindle forward (M3)",
+}
+
+
+def check_groups(block: Block) -> None:
+    """Refuse unknown codes and two codes of one modal group in a line."""
+    seen: dict[str, float] = {}
+    for letter, codes, groups, refused in (("G", block.g, G_GROUPS, G_REFUSED), ("M", block.m, M_GROUPS, M_REFUSED)):
+        for code in codes:
+            code = round(code, 1)
+            word = word_text(letter, code)
+            if code in refused:
+                raise GcodeError(block.line, word, refused[code])
+            group = groups.get(code)
+            if group is None:
+                raise GcodeError(block.line, word, "not supported by this front end")
+            key = f"{letter} {group}"
+            if key in seen:
+                raise GcodeError(block.line, word, f"conflicts with {word_text(letter, seen[key])} "
+                                                   f"in the same line (both {group})")
+            seen[key] = code
+    if any(k in block.words for k in "ABCUVW"):
+        letter = next(k for k in "ABCUVW" if k in block.words)
+        raise GcodeError(block.line, word_text(letter, block.words[letter]), "only X, Y and Z axes are supported")
+
+
+@dataclass
+class Modal:
+    """What stays in force from line to line; lengths in mm, program coordinates."""
+
+    inch: bool = False  # G20
+    incremental: bool = False  # G91
+    arc_absolute: bool = False  # G90.1
+    plane: float = 17.0
+    diameter: bool = False  # G7: X words are diameters
+    per_rev: bool = False  # G95
+    motion: float | None = None
+    retract_initial: bool = False  # G98
+    feed: float | None = None  # as written, in the program's units per min or per rev
+    speed: float = 0.0  # S, rpm
+    spindle_on: bool = False
+    tool: int = 0  # in the spindle (M6)
+    next_tool: int | None = None  # T
+    length_offset: bool = False  # G43
+    work_offset: str = "G54"
+    position: dict[str, float] = field(default_factory=dict)  # known axes, mm, program coordinates
+
+    def length(self, value: float) -> float:
+        """A length word in mm."""
+        return value * 25.4 if self.inch else value

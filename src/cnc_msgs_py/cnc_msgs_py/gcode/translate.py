@@ -1,0 +1,400 @@
+"""The interpreter: a program's blocks, line by line, into our job documents (operations).
+
+Moves (G0/G1/G2/G3/G4) gather into ``move`` operations, canned cycles become the methods of
+``cnc_msgs_py.gcode.cycles``; an operation ends where the next one of another kind, tool,
+speed, work offset or cycle words begins. Every word of a line must be used by something
+in it: a word nothing uses is refused, as is everything this front end does not implement.
+"""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+
+from . import arcs
+from .drilling import hole
+from .lathe import g71, g76
+from .lexer import Block, GcodeError, read_program, word_text
+from .modal import DRILL_CYCLES, MOTION, Modal, check_groups
+
+DIRECTIVE = "CNC,"  # our comments: (CNC,VIBRATION D=1.5 Q=1.2), (CNC,OVERLAP OFF), (CNC,MACHINE mill3)
+VIBRATION_KEYS = {"D": "D", "Q": "Q", "E": "E", "R": "R", "PHASE": "phase_shift", "DSTEP": "D_step"}
+AXES = ("x", "y", "z")
+
+
+@dataclass
+class Operation:
+    """One of our jobs, as a document in machinist units, and the line it starts at."""
+
+    line: int
+    doc: dict
+
+
+@dataclass
+class Context:
+    """What the program document gives besides the text (mm, as the document writes them)."""
+
+    job_id: str
+    machine: str
+    setup: dict = field(default_factory=dict)
+    tool_table: dict[int, dict] = field(default_factory=dict)  # tool number -> {length, diameter, nose_radius}
+    work_offsets: dict[str, dict] = field(default_factory=dict)  # G55..G59 -> setup
+    stock: list | None = None
+    start: dict[str, float] = field(default_factory=dict)
+
+
+def directives(comments: list[str]) -> list[tuple[str, list[str]]]:
+    """Our directive comments of a line as (name, arguments), upper case."""
+    out = []
+    for c in comments:
+        if c.upper().startswith(DIRECTIVE):
+            parts = c[len(DIRECTIVE):].split()
+            if parts:
+                out.append((parts[0].upper(), parts[1:]))
+    return out
+
+
+def machine_named(text: str) -> str | None:
+    """The machine a program names with ``(CNC,MACHINE name)``, if any."""
+    for raw in text.splitlines():
+        for c in raw.split("(")[1:]:
+            for name, args in directives([c.split(")")[0]]):
+                if name == "MACHINE" and args:
+                    return args[0]
+    return None
+
+
+class Translator:
+    """Reads a program once; ``operations`` holds its jobs after ``run``."""
+
+    def __init__(self, ctx: Context) -> None:
+        self.ctx = ctx
+        self.state = Modal(position=dict(ctx.start))
+        self.operations: list[Operation] = []
+        self.current: Operation | None = None
+        self.current_key: tuple | None = None
+        self.vibration: dict | None = None
+        self.overlap = "auto"
+        self.cycle: dict = {}  # sticky canned-cycle words (R, Z, Q, P) and the initial Z
+        self.subs: dict[int, list[Block]] = {}
+        self.numbered: dict[int, int] = {}  # N -> index in blocks
+
+    # ---- the program
+    def run(self, text: str) -> list[Operation]:
+        blocks = read_program(text)
+        body = self._collect_subs(blocks)
+        ended = False
+        skip_to = -1
+        for i, block in enumerate(body):
+            if i <= skip_to:
+                continue
+            self._directives(block)
+            check_groups(block)
+            used: set[str] = set()
+            stop, skip_to = self._block(block, used, body, i)
+            left = [k for k in block.words if k not in used]
+            if left:
+                k = left[0]
+                raise GcodeError(block.line, word_text(k, block.words[k]), "not used by anything in this line")
+            if stop:
+                ended = True
+                break
+        if not ended:
+            last = blocks[-1].line if blocks else 0
+            raise GcodeError(last + 1 if blocks else 1, "end of file", "the program ends without M2 or M30")
+        self._flush()
+        if not self.operations:
+            raise GcodeError(1, "program", "moves no axis: nothing to plan")
+        return self.operations
+
+    def _collect_subs(self, blocks: list[Block]) -> list[Block]:
+        """O-word subroutines out of the main body (G71 takes them by Q); N numbers indexed."""
+        body: list[Block] = []
+        inside: int | None = None
+        for b in blocks:
+            if b.o_word is not None:
+                number, what = b.o_word
+                if what == "sub":
+                    if inside is not None:
+                        raise GcodeError(b.line, f"O{number}", "a subroutine cannot be defined inside another")
+                    if number in self.subs:
+                        raise GcodeError(b.line, f"O{number}", "defined twice")
+                    inside, self.subs[number] = number, []
+                elif what == "endsub":
+                    if inside != number:
+                        raise GcodeError(b.line, f"O{number}", "ends no subroutine of that number")
+                    inside = None
+                else:
+                    raise GcodeError(b.line, f"O{number}", "calls are not expanded: only G71 uses a subroutine (by Q)")
+                continue
+            if inside is not None:
+                self.subs[inside].append(b)
+            else:
+                if b.number is not None:
+                    self.numbered.setdefault(b.number, len(body))
+                body.append(b)
+        if inside is not None:
+            raise GcodeError(blocks[-1].line, f"O{inside}", "subroutine never ends (no endsub)")
+        return body
+
+    def _directives(self, block: Block) -> None:
+        for name, args in directives(block.comments):
+            where = f"(CNC,{name})"
+            if name == "OVERLAP":
+                if [a.upper() for a in args] not in (["AUTO"], ["OFF"]):
+                    raise GcodeError(block.line, where, "takes AUTO or OFF")
+                self.overlap = args[0].lower()
+            elif name == "VIBRATION":
+                self.vibration = self._vibration(block.line, where, args)
+            elif name != "MACHINE":
+                raise GcodeError(block.line, where, "unknown directive (known: VIBRATION, OVERLAP, MACHINE)")
+
+    @staticmethod
+    def _vibration(line: int, where: str, args: list[str]) -> dict | None:
+        if [a.upper() for a in args] == ["OFF"]:
+            return None
+        out: dict = {}
+        for a in args:
+            key, _, value = a.partition("=")
+            if key.upper() not in VIBRATION_KEYS:
+                raise GcodeError(line, where, f"unknown key {key!r} (known: {', '.join(VIBRATION_KEYS)}, or OFF)")
+            try:
+                out[VIBRATION_KEYS[key.upper()]] = float(value)
+            except ValueError:
+                raise GcodeError(line, where, f"{key} needs a number, as {key}=1.5") from None
+        if not out:
+            raise GcodeError(line, where, "give D=.. Q=.., or E=.. R=.., or OFF")
+        return out
+
+    # ---- one line, in LinuxCNC's order of execution
+    def _block(self, b: Block, used: set[str], body: list[Block], index: int) -> tuple[bool, int]:
+        s = self.state
+        g = [round(v, 1) for v in b.g]
+        m = [round(v, 1) for v in b.m]
+        if 20.0 in g or 21.0 in g:
+            s.inch = 20.0 in g
+        if 94.0 in g or 95.0 in g:
+            s.per_rev = 95.0 in g
+        if "F" in b.words:
+            used.add("F")
+            if b.words["F"] <= 0.0:
+                raise GcodeError(b.line, word_text("F", b.words["F"]), "a feed must be > 0")
+            s.feed = b.words["F"]
+        if "S" in b.words:
+            used.add("S")
+            if b.words["S"] < 0.0:
+                raise GcodeError(b.line, word_text("S", b.words["S"]), "a speed must be >= 0")
+            s.speed = b.words["S"]
+        if "T" in b.words:
+            used.add("T")
+            s.next_tool = int(b.words["T"])
+            if s.next_tool != b.words["T"] or s.next_tool not in self.ctx.tool_table and s.next_tool != 0:
+                raise GcodeError(b.line, word_text("T", b.words["T"]), "no such tool in the program's tool table")
+        if 6.0 in m:
+            if s.next_tool is None:
+                raise GcodeError(b.line, "M6", "no tool selected with T")
+            s.tool = s.next_tool
+        if 3.0 in m:
+            s.spindle_on = True
+        if 5.0 in m:
+            s.spindle_on = False
+        for plane in (17.0, 18.0):
+            if plane in g:
+                s.plane = plane
+        if 7.0 in g or 8.0 in g:
+            s.diameter = 7.0 in g
+        if 43.0 in g:
+            if "H" in b.words:
+                used.add("H")
+                if b.words["H"] != s.tool:
+                    raise GcodeError(b.line, word_text("H", b.words["H"]), "only the tool in the spindle's offset is supported")
+            s.length_offset = True
+        if 49.0 in g:
+            s.length_offset = False
+        for w in (54.0, 55.0, 56.0, 57.0, 58.0, 59.0):
+            if w in g:
+                name = word_text("G", w)
+                if name != "G54" and name not in self.ctx.work_offsets:
+                    raise GcodeError(b.line, name, "no such work offset given with the program (work_offsets)")
+                s.work_offset = name
+        if 90.0 in g or 91.0 in g:
+            s.incremental = 91.0 in g
+        if 90.1 in g or 91.1 in g:
+            s.arc_absolute = 90.1 in g
+        if 98.0 in g or 99.0 in g:
+            s.retract_initial = 98.0 in g
+        if 4.0 in g:
+            self._dwell(b, used)
+        skip_to = self._motion(b, g, used, body, index)
+        return (2.0 in m or 30.0 in m), skip_to
+
+    def _dwell(self, b: Block, used: set[str]) -> None:
+        if "P" not in b.words or b.words["P"] < 0.0:
+            raise GcodeError(b.line, "G4", "needs P, the dwell in seconds (>= 0)")
+        used.add("P")
+        if b.words["P"] > 0.0:
+            self._move(b.line, {"dwell": b.words["P"]})
+
+    # ---- motion
+    def _motion(self, b: Block, g: list[float], used: set[str], body: list[Block], index: int) -> int:
+        s = self.state
+        motion = next((c for c in g if c in MOTION), None)
+        if motion == 80.0:
+            s.motion, self.cycle = None, {}
+            if b.has_axes():
+                raise GcodeError(b.line, "G80", "axis words with G80 and no motion to use them")
+            return -1
+        if motion in (71.0, 72.0, 76.0):
+            if 4.0 in g:
+                raise GcodeError(b.line, word_text("G", motion), "cannot share a line with G4")
+            return self._one_shot(b, motion, used, body, index)
+        if motion is not None:
+            if motion in DRILL_CYCLES and s.motion != motion:
+                self.cycle = {"initial_z": s.position.get("z")}
+            s.motion = motion
+        if s.motion is None:
+            if b.has_axes():
+                k = next(k for k in "XYZ" if k in b.words)
+                raise GcodeError(b.line, word_text(k, b.words[k]), "no motion mode in force (give G0 or G1)")
+            return -1
+        if s.motion in DRILL_CYCLES:
+            if b.has_axes() or motion is not None:
+                self._hole(b, used)
+            return -1
+        if not b.has_axes():
+            return -1
+        if s.motion in (0.0, 1.0):
+            before = dict(s.position)
+            target = self._target(b, used)
+            if target == before:
+                return -1  # no motion: the tool is there already (our cycles end where LinuxCNC's return to)
+            if s.motion == 0.0:
+                self._move(b.line, {"rapid": target})
+            else:
+                self._move(b.line, {"linear": target, "feed": self._feed_mm_min(b.line, "G1")})
+        else:
+            self._arc(b, used)
+        return -1
+
+    def _axis_value(self, b: Block, axis: str) -> float:
+        v = self.state.length(b.words[axis.upper()])
+        return v / 2.0 if axis == "x" and self.state.diameter else v
+
+    def _target(self, b: Block, used: set[str]) -> dict[str, float]:
+        """The new position (every known axis, mm), updating the state."""
+        pos = self.state.position
+        for axis in AXES:
+            if axis.upper() in b.words:
+                used.add(axis.upper())
+                v = self._axis_value(b, axis)
+                if self.state.incremental:
+                    if axis not in pos:
+                        raise GcodeError(b.line, word_text(axis.upper(), b.words[axis.upper()]),
+                                         "incremental move from an unknown position (give it absolutely first)")
+                    v += pos[axis]
+                pos[axis] = v
+        return dict(pos)
+
+    def _feed_mm_min(self, line: int, word: str) -> float:
+        s = self.state
+        if s.feed is None:
+            raise GcodeError(line, word, "no feed given (F)")
+        if s.per_rev:
+            if not (s.spindle_on and s.speed > 0.0):
+                raise GcodeError(line, word, "G95 feeds per revolution need the spindle on (S, M3)")
+            return s.length(s.feed) * s.speed
+        return s.length(s.feed)
+
+    def _arc(self, b: Block, used: set[str]) -> None:
+        s = self.state
+        name = word_text("G", s.motion)
+        a, c = ("x", "y") if s.plane == 17.0 else ("z", "x")
+        offsets = ("I", "J") if s.plane == 17.0 else ("K", "I")
+        if a not in s.position or c not in s.position:
+            raise GcodeError(b.line, name, "an arc from an unknown position (move both plane axes first)")
+        start = (s.position[a], s.position[c])
+        before = dict(s.position)
+        end_pos = self._target(b, used)
+        end = (end_pos[a], end_pos[c])
+        try:
+            if "R" in b.words:
+                used.add("R")
+                if any(k in b.words for k in offsets):
+                    raise ValueError("give R or the center offsets, not both")
+                center = arcs.center_from_radius(start, end, s.length(b.words["R"]), s.motion == 2.0)
+            else:
+                if not any(k in b.words for k in offsets):
+                    raise ValueError(f"needs R or the center offsets {offsets[0]}/{offsets[1]}")
+                used.update(k for k in offsets if k in b.words)
+                off = [s.length(b.words.get(k, 0.0)) for k in offsets]
+                center = (off[0], off[1]) if s.arc_absolute else (start[0] + off[0], start[1] + off[1])
+                arcs.check_center(start, end, center)
+        except ValueError as err:
+            raise GcodeError(b.line, name, str(err)) from None
+        feed = self._feed_mm_min(b.line, name)
+        third = next(k for k in AXES if k not in (a, c))
+        for pa, pc, share in arcs.chords(start, end, center, s.motion == 2.0):
+            target = {**end_pos, a: pa, c: pc}
+            if third in end_pos and third in before:
+                target[third] = before[third] + share * (end_pos[third] - before[third])
+            self._move(b.line, {"linear": target, "feed": feed})
+
+    # ---- operations
+    def _common(self, kind: str) -> dict:
+        s = self.state
+        setup = self.ctx.setup if s.work_offset == "G54" else self.ctx.work_offsets[s.work_offset]
+        tool = dict(self.ctx.tool_table.get(s.tool, {}))
+        if not s.length_offset:
+            tool.pop("length", None)
+        doc = {"schema": "cnc_job/1", "job_id": "", "kind": kind, "machine": self.ctx.machine,
+               "tool": tool, "setup": copy.deepcopy(setup), "spindle_rpm": s.speed if s.spindle_on else 0.0}
+        return doc
+
+    def _begin(self, line: int, kind: str, key: tuple, block: dict | list) -> dict | list:
+        """The open operation's block if it continues with ``key``, else a new operation's."""
+        if self.current is not None and self.current_key == (kind, key):
+            return self.current.doc[kind]
+        self._flush()
+        doc = self._common(kind)
+        doc[kind] = block
+        if self.vibration is not None and kind != "move":  # a move operation takes it once it has a feed move
+            doc["vibration"] = dict(self.vibration)
+        self.current, self.current_key = Operation(line, doc), (kind, key)
+        return block
+
+    def _flush(self) -> None:
+        if self.current is not None:
+            k = len(self.operations) + 1
+            self.current.doc["job_id"] = f"{self.ctx.job_id[:56]}.op{k}"
+            if self.current.doc["kind"] == "move" and self.vibration is not None and "vibration" not in self.current.doc \
+                    and any("linear" in m for m in self.current.doc["move"]):
+                self.current.doc["vibration"] = dict(self.vibration)
+            self.operations.append(self.current)
+        self.current, self.current_key = None, None
+
+    def _key(self) -> tuple:
+        s = self.state
+        vib = None if self.vibration is None else tuple(sorted(self.vibration.items()))
+        return (s.tool, s.length_offset, s.work_offset, s.speed if s.spindle_on else 0.0, vib)
+
+    def _move(self, line: int, entry: dict) -> None:
+        self._begin(line, "move", self._key(), []).append(entry)
+
+    def _need_spindle(self, line: int, word: str) -> None:
+        if not (self.state.spindle_on and self.state.speed > 0.0):
+            raise GcodeError(line, word, "the spindle is off: give S and M3 before the cycle")
+
+    def _hole(self, b: Block, used: set[str]) -> None:
+        hole(self, b, used)
+
+    def _one_shot(self, b: Block, motion: float, used: set[str], body: list[Block], index: int) -> int:
+        if motion == 76.0:
+            g76(self, b, used)
+            return -1
+        if motion == 72.0:
+            raise GcodeError(b.line, "G72", "facing roughing is not supported yet (our roughing turns along Z: G71)")
+        return g71(self, b, used, body, index)
+
+
+def translate(text: str, ctx: Context) -> list[Operation]:
+    """A program's operations (job documents, mm), or GcodeError at its first bad line."""
+    return Translator(ctx).run(text)

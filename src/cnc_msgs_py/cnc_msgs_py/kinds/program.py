@@ -1,0 +1,74 @@
+"""Program jobs: a G-code program (``cnc_msgs_py.gcode``) run as one goal, its operations our
+other kinds' jobs. The block::
+
+    program:
+      gcode: "G21 G90 ... M2"            # the program text
+      tool_table: [{tool: 1, length: 50, diameter: 6}]   # T numbers; G43 applies the length
+      work_offsets: {G55: {origin: [100, 0, 0]}}          # G55..G59; G54 is the job's setup
+      stock: [[0, 20], [-40, 20]]         # G71's real stock, [z, radius] as turn.stock
+      start: {x: 7, z: 4}                 # where the tool stands when the program begins
+
+The program is translated and every operation validated as its kind's job when the document
+is parsed, so a bad program is refused, by line and word, before anything moves.
+"""
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+from ..schema import JobError, List, Num, Obj, Str
+from .kind import MAX_LIST, KindSchema
+from .turn import OUTLINE
+
+MAX_PROGRAM_CHARS = 5_000_000
+
+TOOL = Obj({"tool": Num("1", min=1, max=99999, integer=True), "length": Num("mm", min=0.0, max=1000.0, default=0.0),
+            "diameter": Num("mm", min=0.0, max=500.0, default=None), "nose_radius": Num("mm", min=0.0, max=10.0, default=0.0)})
+SETUP = Obj({"origin": List(Num("mm"), length=3, default=[0.0, 0.0, 0.0]),
+             "rotation_deg": List(Num("deg"), length=3, default=[0.0, 0.0, 0.0])})
+PROGRAM = Obj({
+    "gcode": Str(),
+    "tool_table": List(TOOL, max_len=1000, default=None),
+    "work_offsets": Obj({f"G{n}": Obj(SETUP.fields, default=None) for n in range(55, 60)}, default=None),
+    "stock": List(OUTLINE.item, min_len=2, max_len=MAX_LIST, default=None),  # as turn.stock
+    "start": Obj({k: Num("mm", default=None) for k in ("x", "y", "z")}, default=None),
+}, default=None)
+
+
+def check(job: SimpleNamespace) -> None:
+    """Everything is checked on the raw document (check_given): the translation needs mm."""
+    if len(job.program.gcode) > MAX_PROGRAM_CHARS:
+        raise JobError("program.gcode", f"longer than {MAX_PROGRAM_CHARS} characters")
+
+
+def translate_program(doc: dict, job: SimpleNamespace) -> None:
+    """The program's operations in ``job.program.operations``: a list of (line, job in SI,
+    its document in mm); any error is ``line N: <word>: <reason>``."""
+    from ..gcode import Context, GcodeError, translate
+    from ..job import parse_job  # the job schema holds this module: imported when used
+    block = doc["program"]
+    table = {}
+    for entry in block.get("tool_table") or []:
+        if entry["tool"] in table:
+            raise JobError("program.tool_table", f"tool {entry['tool']} given twice")
+        table[entry["tool"]] = {k: v for k, v in entry.items() if k != "tool"}
+    ctx = Context(job_id=job.job_id, machine=job.machine, setup=doc.get("setup") or {}, tool_table=table,
+                  work_offsets={k: v for k, v in (block.get("work_offsets") or {}).items() if v is not None},
+                  stock=block.get("stock"), start={k: v for k, v in (block.get("start") or {}).items() if v is not None})
+    operations = []
+    for op in translate(block["gcode"], ctx):
+        try:
+            operations.append((op.line, parse_job(op.doc), op.doc))
+        except GcodeError:
+            raise
+        except JobError as err:
+            raise GcodeError(op.line, op.doc["kind"], str(err)) from err
+    job.program.operations = operations
+
+
+KIND = KindSchema(
+    "program", PROGRAM, check, check_given=translate_program,
+    unused={"tool": "the program's tool table and T words give the tool",
+            "spindle_rpm": "the program's S and M3 words give the speed",
+            "vibration": "the program's (CNC,VIBRATION ...) comments give it",
+            "setup.work_offset": "G54..G59 select the program's work offsets"},
+)

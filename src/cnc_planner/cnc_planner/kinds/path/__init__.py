@@ -4,11 +4,12 @@ from __future__ import annotations
 
 from cnc_planner.kinds.kind import JobKind, ReportSection
 
+from .page import cards
 from .planning import plan_path
 from .report import path_section
 
 KIND = JobKind(
     name="path",
     plan=plan_path,
-    report=ReportSection("kinematics", path_section),
+    report=ReportSection("kinematics", path_section, cards=cards),
 )

@@ -8,7 +8,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 BENCHES = ("drill_cycle.py", "deep_holes.py", "vibration_speed.py", "turning_air.py", "thread_chips.py", "load.py",
-           "memory.py")
+           "memory.py", "path_5ax.py")
 
 
 def main() -> int:

@@ -16,9 +16,10 @@ programmed lines. Where it does not (a slow drive, a lever too long, a coarse en
 the feed is lowered by SLOWDOWN and the traverse planned again, down to MIN_FEED_SHARE of
 the job's feed; below that the job is refused, naming what the tip would miss by.
 
-The compensated command must stay within the limits the path is planned with: where it
-does not (the traverse uses an axis's full velocity or acceleration, the correction
-adds to it), the stretches are planned again on HEADROOM of those limits, step by step.
+The compensated command must stay within the axes' limits as described (the bridge's):
+where it does not (the traverse uses an axis's full velocity or acceleration, the
+correction adds to it), the stretches are planned again slower and on HEADROOM of the
+limits they use, step by step.
 The plan check (motion.plan_check, through motion.derating) then holds the whole plan to
 the bridge's contract, lowering the machine's limits if it must.
 """
@@ -45,7 +46,8 @@ SLOWDOWN = 0.7  # feed factor per try where the predicted tip misses the toleran
 MIN_FEED_SHARE = 0.05  # of the job's feed: slower than this, the job is refused
 CHORD_SHARE = 0.8  # of the chord tolerance the waypoints may use; the rest is the drives' residual
 HEADROOM = 0.9  # factor on the share of the limits the stretches use, per try where the command breaks them
-MAX_TRIES = 24  # feed and headroom steps together
+MAX_TRIES = 12  # feed and headroom steps together
+MAX_TRAVERSE_S = 600.0  # s: a path the drives follow only slower than this is refused
 
 
 @dataclass(frozen=True)
@@ -96,43 +98,54 @@ def exact_traverse(kin: Kinematics, machine: Machine, joints: list[str], points:
     drive = DriveModel(machine, period, tuple(joints))
     band = min((compensation_band(DriveModel(machine, period, (j,)), machine.drive_axes[j].max_acceleration)
                 for j in joints), key=lambda b: b[1])
-    v_max = np.array([machine.axes[j].max_velocity for j in joints])
-    a_max = np.array([machine.axes[j].max_acceleration for j in joints])
-    tried, share = feed, 1.0
+    # the limits the bridge holds the command to: the machine as described, not as derated
+    v_max = np.array([machine.drive_axes[j].max_velocity for j in joints])
+    a_max = np.array([machine.drive_axes[j].max_acceleration for j in joints])
+    tried, share, before = feed, 1.0, math.inf
     for _ in range(MAX_TRIES):
         path = sample(tried)
         stretches = sections(path, share)
         p, v, a, lead, motion = _reference(stretches, path, joints, period)
+        if motion > MAX_TRAVERSE_S:
+            raise JobError("path.feed", f"the drives follow the path within chord_tolerance {to_mm(tolerance):g} mm "
+                                        f"only at {to_mm_per_min(tried):.0f} mm/min or slower: it would take "
+                                        f"{motion:.0f} s, more than {MAX_TRAVERSE_S:.0f} s")
         tail = math.ceil(COMPENSATION_TAIL / period)
         correction = learned_command(drive, p, v, a, lead // 2, len(p) - 1 - tail, period, band)
         command = np.stack((p, v, a))
         command[:, :correction.shape[1]] += correction
-        if not _within(command, v_max, a_max, period):
+        excess = _excess(command, v_max, a_max, period)
+        if excess > 1.0:  # slower and on less of the limits: the correction shrinks with both
             share *= HEADROOM
-            continue
-        feedback = drive.simulate(*command)[0]
-        tips, _ = kin.fk_many({j: feedback[:, i] for i, j in enumerate(joints)})
-        deviation = float(distance_to_polyline(tips, points).max())
-        if deviation <= tolerance:
-            return ExactTraverse(start, lead * period, motion, period, command, tried, deviation,
-                                 max(len(stretches) - 1, 0), len(path.param))
-        if tried * SLOWDOWN < MIN_FEED_SHARE * feed:
+            factor = min(SLOWDOWN, 1.0 / math.sqrt(excess))
+        else:
+            feedback = drive.simulate(*command)[0]
+            tips, _ = kin.fk_many({j: feedback[:, i] for i, j in enumerate(joints)})
+            deviation = float(distance_to_polyline(tips, points).max())
+            if deviation <= tolerance:
+                return ExactTraverse(start, lead * period, motion, period, command, tried, deviation,
+                                     max(len(stretches) - 1, 0), len(path.param))
+            factor = min(SLOWDOWN, tolerance / deviation)
+        # a correction that does not shrink when slower is the drive's, not the speed's: refuse
+        stuck, before = excess > 1.0 and excess > 0.9 * before, excess
+        if tried * factor < MIN_FEED_SHARE * feed or stuck:
+            why = (f"the compensated command would break the axes' limits ({excess:.3g} x)" if excess > 1.0
+                   else f"the tip would miss by {to_mm(deviation) * 1000:.1f} um on the drive model")
             raise JobError("path.feed", f"the drives cannot keep the tip within chord_tolerance "
-                                        f"{to_mm(tolerance):g} mm even at {to_mm_per_min(tried):.0f} mm/min: "
-                                        f"it would miss by {to_mm(deviation) * 1000:.1f} um on the drive model")
-        tried *= SLOWDOWN
-    raise JobError("path.feed", f"the drive-compensated command does not fit the axes' limits even on "
-                                f"{share:.0%} of them at {to_mm_per_min(tried):.0f} mm/min")
+                                        f"{to_mm(tolerance):g} mm even at {to_mm_per_min(tried):.0f} mm/min: {why}")
+        tried *= factor
+    raise JobError("path.feed", f"no feed down to {to_mm_per_min(tried):.0f} mm/min keeps the tip within "
+                                f"chord_tolerance {to_mm(tolerance):g} mm on the drive model")
 
 
-def _within(command: np.ndarray, v_max: np.ndarray, a_max: np.ndarray, period: float) -> bool:
-    """Velocity and acceleration of the command within the limits, as sampled and by finite
-    differences of its positions (as the bridge streams them)."""
+def _excess(command: np.ndarray, v_max: np.ndarray, a_max: np.ndarray, period: float) -> float:
+    """How far the command's velocity and acceleration go beyond the limits, as sampled and by
+    finite differences of its positions (as the bridge streams them): the largest ratio."""
     p, v, a = command
     fd_v = np.abs(np.diff(p, axis=0)) / period
     fd_a = np.abs(np.diff(p, 2, axis=0)) / period**2
-    return bool(np.all(np.abs(v) <= v_max) and np.all(fd_v <= v_max)
-                and np.all(np.abs(a) <= a_max) and np.all(fd_a <= a_max))
+    return float(max(np.max(np.abs(v) / v_max), np.max(fd_v / v_max),
+                     np.max(np.abs(a) / a_max), np.max(fd_a / a_max)))
 
 
 def _reference(stretches: list, path: SampledPath, joints: list[str], period: float

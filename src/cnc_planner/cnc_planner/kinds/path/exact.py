@@ -18,8 +18,9 @@ the job's feed; below that the job is refused, naming what the tip would miss by
 
 The compensated command must stay within the axes' limits as described (the bridge's):
 where it does not (the traverse uses an axis's full velocity or acceleration, the
-correction adds to it), the stretches are planned again slower and on HEADROOM of the
-limits they use, step by step.
+correction adds to it), the plain command is taken if its predicted tip holds the
+tolerance (stiff drives need no correction); else the stretches are planned again slower
+and on HEADROOM of the limits they use, step by step.
 The plan check (motion.plan_check, through motion.derating) then holds the whole plan to
 the bridge's contract, lowering the machine's limits if it must.
 """
@@ -115,16 +116,16 @@ def exact_traverse(kin: Kinematics, machine: Machine, joints: list[str], points:
         command = np.stack((p, v, a))
         command[:, :correction.shape[1]] += correction
         excess = _excess(command, v_max, a_max, period)
-        if excess > 1.0:  # slower and on less of the limits: the correction shrinks with both
+        if excess > 1.0:  # the plain command may do (stiff drives); else slower, on less of the limits
+            command = np.stack((p, v, a))
+        deviation = _deviation(kin, drive, command, joints, points)
+        if deviation <= tolerance:
+            return ExactTraverse(start, lead * period, motion, period, command, tried, deviation,
+                                 max(len(stretches) - 1, 0), len(path.param))
+        if excess > 1.0:
             share *= HEADROOM
             factor = min(SLOWDOWN, 1.0 / math.sqrt(excess))
         else:
-            feedback = drive.simulate(*command)[0]
-            tips, _ = kin.fk_many({j: feedback[:, i] for i, j in enumerate(joints)})
-            deviation = float(distance_to_polyline(tips, points).max())
-            if deviation <= tolerance:
-                return ExactTraverse(start, lead * period, motion, period, command, tried, deviation,
-                                     max(len(stretches) - 1, 0), len(path.param))
             factor = min(SLOWDOWN, tolerance / deviation)
         # a correction that does not shrink when slower is the drive's, not the speed's: refuse
         stuck, before = excess > 1.0 and excess > 0.9 * before, excess
@@ -136,6 +137,14 @@ def exact_traverse(kin: Kinematics, machine: Machine, joints: list[str], points:
         tried *= factor
     raise JobError("path.feed", f"no feed down to {to_mm_per_min(tried):.0f} mm/min keeps the tip within "
                                 f"chord_tolerance {to_mm(tolerance):g} mm on the drive model")
+
+
+def _deviation(kin: Kinematics, drive: DriveModel, command: np.ndarray, joints: list[str],
+               points: np.ndarray) -> float:
+    """The largest distance (m) of the drive model's tip from the programmed lines."""
+    feedback = drive.simulate(*command)[0]
+    tips, _ = kin.fk_many({j: feedback[:, i] for i, j in enumerate(joints)})
+    return float(distance_to_polyline(tips, points).max())
 
 
 def _excess(command: np.ndarray, v_max: np.ndarray, a_max: np.ndarray, period: float) -> float:

@@ -229,3 +229,21 @@ def test_repeated_points_and_a_standing_path_plan():
     _, _, plan, *_, ev = planned(path_doc("mill3", [[5, 5, 5], [5, 5, 5]]))
     assert ev["path_end"].time == ev["path_start"].time and ev["path_start"].data["stops"] == 0
     assert plan.final_position()["x"] == pytest.approx(mm(5.0))
+
+
+def test_a_tip_beyond_the_tolerance_fails_the_verdict_the_page_and_cnc_run():
+    from cnc_planner.cli import VERDICT_FAILED, failed_verdicts, summary
+    from cnc_planner.kinds.path.page import cards
+    from cnc_planner.kinds.path.report import verdict
+    figures = {"max_tip_deviation_mm": 0.0306, "commanded_max_tip_deviation_mm": 0.0096, "chord_tolerance_mm": 0.01,
+               "servo_lag_mm": 0.03, "feedback_samples": 6000}
+    missed = {**figures, "completed": True, "path_time_s": 5.0, **verdict(figures, True)}
+    assert missed["within_tolerance"] is False and missed["verdict"]["passed"] is False
+    assert "0.0306 mm" in missed["verdict"]["says"] and "beyond the chord tolerance 0.01 mm" in missed["verdict"]["says"]
+    assert cards(missed)[0][1:2] == ("beyond tolerance",) and cards(missed)[0][3] == "bad"
+    report = {"job_id": "p", "state": "succeeded", "reason": "", "cycle_time_s": 6.0, "max_following_error": {},
+              "setpoints": 1, "chunks": 1, "chunks_lost": 0, "kinematics": missed}
+    assert failed_verdicts(report) == ["kinematics"] and VERDICT_FAILED != 0
+    assert "verdict kinematics: FAILED" in summary(report)
+    held = {**figures, "max_tip_deviation_mm": 0.0077}
+    assert verdict(held, True)["within_tolerance"] and not verdict(held, False)["within_tolerance"]

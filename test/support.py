@@ -39,7 +39,7 @@ def check_verified_properties(kind: str, report: dict, depth_mm: float = 5.0, de
     """What we verify on feedback for a job kind's example (report.json of a recording, or
     of a predicted run): drilling safe and at depth, an air-cut in every vibrating
     revolution, thread chips broken with full depth on one helix, turning never into the
-    part, a path completed."""
+    part, a path completed with the tip on feedback within its chord tolerance."""
     if kind == "drill":
         drill = report["drill"]
         assert drill["safety_violations"] == 0
@@ -58,7 +58,7 @@ def check_verified_properties(kind: str, report: dict, depth_mm: float = 5.0, de
     elif kind == "turn":
         assert report["turn"]["max_gouge_part_mm"] == 0
     elif kind == "path":
-        assert report["kinematics"]["completed"]
+        assert report["kinematics"]["completed"] and report["kinematics"]["within_tolerance"]
     else:
         raise ValueError(f"no properties for job kind {kind!r}")
 

@@ -1,6 +1,11 @@
 """Command-line tools: cnc-run (a job through both nodes), cnc-plan (offline), cnc-analyze.
 
 Every user-facing failure is one line naming what to fix, with a non-zero exit code.
+cnc-run's exit codes: 0 the job succeeded and every verdict of its report holds; 1 the job
+did not succeed (rejected by the planner, aborted, canceled); 2 the input is bad (job file,
+machine, --out); 3 the run itself failed (nodes, timeout); 4 the job ran to its end but a
+verdict of the report failed (a section's ``verdict.passed`` is false): a miss is never
+reported as a success.
 """
 from __future__ import annotations
 
@@ -82,7 +87,19 @@ def run_main(argv: list[str] | None = None) -> int:
     page = write_report_page(report, plots, out / "report.html", job=doc)
     print(summary(report))
     print(f"  report {page}")
-    return 0 if status["state"] == "succeeded" else 1
+    if status["state"] != "succeeded":
+        return 1
+    return VERDICT_FAILED if failed_verdicts(report) else 0
+
+
+VERDICT_FAILED = 4  # cnc-run's exit code: the job ran, the report judged it a miss
+
+
+def failed_verdicts(report: dict) -> list[str]:
+    """The report's sections whose verdict failed (a section's ``verdict`` with passed false)."""
+    return [key for key, section in report.items()
+            if isinstance(section, dict) and isinstance(section.get("verdict"), dict)
+            and section["verdict"].get("passed") is False]
 
 
 def summary(report: dict) -> str:
@@ -92,6 +109,10 @@ def summary(report: dict) -> str:
         lines += [f"  cycle time on feedback  {report['cycle_time_s']:.3f} s",
                   f"  max following error     {fe} (mm / mrad)",
                   f"  setpoints {report['setpoints']} in {report['chunks']} chunks, {report['chunks_lost']} lost"]
+    for key, section in report.items():
+        if isinstance(section, dict) and isinstance(section.get("verdict"), dict):
+            verdict = section["verdict"]
+            lines.append(f"  verdict {key}: {'passed' if verdict.get('passed') else 'FAILED'}: {verdict.get('says', '')}")
     return "\n".join(lines)
 
 

@@ -14,6 +14,7 @@ from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.units import mm
 from cnc_planner.planning import plan_job
 from cnc_planner.kinematics import Kinematics, KinematicsError
+from cnc_planner.kinds.path.exact import LEAD_S
 from cnc_planner.kinds.path.report import _segment_distances, distance_to_polyline, path_figures, tip_deviations
 from cnc_planner.prediction import simulated_feedback
 
@@ -73,21 +74,34 @@ def test_every_joint_within_its_velocity_and_acceleration_by_finite_differences(
         assert np.abs(a[:, i]).max() <= axis.max_acceleration * (1 + LIMIT_SLACK), name
 
 
-@pytest.mark.parametrize("case", CASES)
-def test_commanded_tip_within_the_chord_tolerance_and_at_the_feed(case):
-    job, machine, plan, t, p, _, _, ev = planned(CASES[case])
+def fed_back(case: str):
+    """The drive model's feedback to the plan: times, positions (n, joints) and tips."""
+    job, machine, plan, *_, ev = planned(CASES[case])
+    t, fb = simulated_feedback(plan, machine)
     kin = Kinematics(machine, job.setup, job.tool)
-    on = (t >= ev["path_start"].time - 1e-9) & (t <= ev["path_end"].time + 1e-9)
-    joints = {j: p[on, parse_column(machine, j)] for j in kin.joints}
-    assert tip_deviations(kin, joints, np.array(job.path.points)).max() <= job.path.chord_tolerance
-    tips, _ = kin.fk_many(joints)
+    tips, _ = kin.fk_many({j: fb[:, parse_column(machine, j)] for j in kin.joints})
+    return job, machine, plan, ev, t, fb, tips
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_tip_on_the_drive_models_feedback_within_the_chord_tolerance_and_at_the_feed(case):
+    job, machine, plan, ev, t, fb, tips = fed_back(case)
+    # the commands lead the line (drive compensation): the feedback is what is judged,
+    # from the first pose (the rapid there is no part of the path) to the end
+    on = t >= ev["path_start"].time - LEAD_S - 1e-9
+    assert distance_to_polyline(tips[on], np.array(job.path.points)).max() <= job.path.chord_tolerance
+    assert ev["path_start"].data["predicted_tip_deviation"] <= job.path.chord_tolerance
     # The waypoints are timed by their chords at the feed; between them the tip runs on an
-    # arc within the chord tolerance, a little longer: the speed may exceed the feed by a hair.
-    speed = np.linalg.norm(np.diff(tips, axis=0), axis=1) / PERIOD
-    assert speed.max() <= job.path.feed * 1.005
-    ends = plan.sample(np.array([ev["path_start"].time, ev["path_end"].time]))[0]
-    ends, _ = kin.fk_many({j: ends[:, parse_column(machine, j)] for j in kin.joints})
-    assert ends == pytest.approx(np.array(job.path.points)[[0, -1]], abs=1e-12)
+    # arc within the chord tolerance, a little longer; over 10 ms the encoder counts average out.
+    speed = np.linalg.norm(tips[on][10:] - tips[on][:-10], axis=1) / (10 * PERIOD)
+    assert speed.max() <= ev["path_start"].data["planned_feed"] * 1.01
+    assert ev["path_start"].data["planned_feed"] <= job.path.feed
+    # the command ends at rest on the last pose; the feedback settles there
+    end = plan.sample(np.array([plan.duration]))
+    kin = Kinematics(machine, job.setup, job.tool)
+    last, _ = kin.fk_many({j: end[0][:, parse_column(machine, j)] for j in kin.joints})
+    assert last[0] == pytest.approx(job.path.points[-1], abs=1e-12)
+    assert np.abs(end[1]).max() == 0.0
 
 
 def parse_column(machine, joint: str) -> int:
@@ -99,18 +113,19 @@ def test_the_5_axis_tilt_is_one_profile_at_the_feed():
     start, end = ev["path_start"], ev["path_end"]
     assert start.data["stops"] == 0 and start.data["waypoints"] > 10
     assert end.data["chord_tolerance"] == pytest.approx(mm(0.01))
-    assert start.data["feed"] == pytest.approx(job.path.feed)
+    assert start.data["feed"] == pytest.approx(job.path.feed) == pytest.approx(start.data["planned_feed"])
     # 60 mm at 600 mm/min is 6 s; one jerk-limited ramp up and down costs a few ms
     assert 6.0 < end.time - start.time < 6.1
+    *_, t_fb, _, tips = fed_back("path_5ax_tilt")
+    on = t_fb >= start.time
+    speed = np.linalg.norm(tips[on][10:] - tips[on][:-10], axis=1) / (10 * PERIOD)
+    assert speed.max() == pytest.approx(job.path.feed, rel=1e-2)
     kin = Kinematics(machine, job.setup, job.tool)
-    on = (t >= start.time) & (t <= end.time)
-    tips, axes = kin.fk_many({j: p[on, parse_column(machine, j)] for j in kin.joints})
-    speed = np.linalg.norm(np.diff(tips, axis=0), axis=1) / PERIOD
-    assert speed.max() == pytest.approx(job.path.feed, rel=1e-3)
-    tilt = np.degrees(np.arccos(np.clip(axes[:, 2], -1, 1)))
-    assert np.all(np.diff(tilt) >= 0.0) and tilt[-1] == pytest.approx(30.0, abs=1e-5)
-    # the rapid put every joint on the first pose, at rest, by path_start
-    at_start = [x[0] for x in plan.sample(np.array([start.time]))]
+    _, axes = kin.fk_many({j: p[-1:, parse_column(machine, j)] for j in kin.joints})
+    assert np.degrees(np.arccos(axes[0, 2])) == pytest.approx(30.0, abs=1e-5)
+    # the rapid put every joint on the first pose, at rest, LEAD_S before path_start:
+    # the compensated command leads the motion from there
+    at_start = [x[0] for x in plan.sample(np.array([start.time - LEAD_S]))]
     tip, axis = kin.fk_many({j: [at_start[0][parse_column(machine, j)]] for j in kin.joints})
     assert tip[0] == pytest.approx(job.path.points[0], abs=1e-12)
     assert axis[0] == pytest.approx(job.path.tool_axis[0], abs=1e-12)
@@ -120,18 +135,17 @@ def test_the_5_axis_tilt_is_one_profile_at_the_feed():
 
 
 def test_polyline_corners_are_exact_stops():
-    job, machine, plan, t, p, v, _, ev = planned(CASES["path_mill3"])
+    job, machine, plan, ev, t, fb, tips = fed_back("path_mill3")
     assert ev["path_start"].data["stops"] == 4  # every corner of plunge, rectangle, retract
-    xyz = [parse_column(machine, j) for j in "xyz"]
-    # one rest-to-rest traverse per side: they end on the corners, at rest
-    ends = np.array([piece.end for piece in plan.timelines["x"].pieces if piece.start >= ev["path_start"].time - 1e-12])
-    assert len(ends) == 5
-    pos, vel, _ = plan.sample(ends)
-    assert pos[:, xyz] == pytest.approx(np.array(job.path.points[1:]), abs=1e-12)
-    assert np.abs(vel[:, xyz]).max() < 1e-9
+    # the tip on feedback comes to rest on every corner (within the encoder's counts)
+    tips = tips[t >= ev["path_start"].time]
+    speed = np.linalg.norm(tips[10:] - tips[:-10], axis=1) / (10 * PERIOD)
+    for corner in job.path.points[1:]:
+        near = np.linalg.norm(tips[5:-5] - corner, axis=1)
+        k = int(np.argmin(near))
+        assert near[k] < 1e-6 and speed[max(k - 10, 0):k + 10].min() < 0.1 * job.path.feed  # 10 ms windows about a stop
     # straight sides run at the feed
-    on = (t >= ev["path_start"].time) & (t <= ev["path_end"].time)
-    assert np.linalg.norm(v[on][:, xyz], axis=1).max() == pytest.approx(job.path.feed, rel=1e-6)
+    assert speed.max() == pytest.approx(job.path.feed, rel=1e-2)
 
 
 def test_c_turn_on_the_spot_runs_through_instead_of_stopping_every_step():
@@ -141,7 +155,7 @@ def test_c_turn_on_the_spot_runs_through_instead_of_stopping_every_step():
 
 
 @pytest.mark.parametrize("case", ["path_5ax_tilt", "path_mill3", "c_turn_table_table"])
-def test_feedback_of_the_drive_model_within_tolerance_plus_servo_lag(case):
+def test_report_figures_of_the_drive_models_feedback_within_tolerance(case):
     job, machine, plan, *_ = planned(CASES[case])
     t, fb = simulated_feedback(plan, machine)
     p, _, _ = plan.sample(t)
@@ -154,11 +168,11 @@ def test_feedback_of_the_drive_model_within_tolerance_plus_servo_lag(case):
                            job.path.chord_tolerance)
     tol = figures["chord_tolerance_mm"]
     assert tol == pytest.approx(job.path.chord_tolerance * 1e3)
-    assert figures["commanded_max_tip_deviation_mm"] <= tol
-    # velocity feed-forward: lag only where joints accelerate; most where C turns a table
-    # carrying the tip 80 mm off its axis at full speed (the C drive lags more than X/Y)
+    # the command leads the feedback by the drives' lag, most where C turns a table carrying
+    # the tip 80 mm off its axis at full speed; the feedback is on the line
     assert 0.0 < figures["servo_lag_mm"] < (0.2 if case.startswith("c_turn") else 0.05)
-    assert figures["max_tip_deviation_mm"] <= tol + figures["servo_lag_mm"]
+    assert figures["max_tip_deviation_mm"] <= tol
+    assert figures["max_tip_deviation_mm"] <= figures["commanded_max_tip_deviation_mm"] + figures["servo_lag_mm"]
 
 
 def test_distance_to_polyline_matches_brute_force():
@@ -215,3 +229,21 @@ def test_repeated_points_and_a_standing_path_plan():
     _, _, plan, *_, ev = planned(path_doc("mill3", [[5, 5, 5], [5, 5, 5]]))
     assert ev["path_end"].time == ev["path_start"].time and ev["path_start"].data["stops"] == 0
     assert plan.final_position()["x"] == pytest.approx(mm(5.0))
+
+
+def test_a_tip_beyond_the_tolerance_fails_the_verdict_the_page_and_cnc_run():
+    from cnc_planner.cli import VERDICT_FAILED, failed_verdicts, summary
+    from cnc_planner.kinds.path.page import cards
+    from cnc_planner.kinds.path.report import verdict
+    figures = {"max_tip_deviation_mm": 0.0306, "commanded_max_tip_deviation_mm": 0.0096, "chord_tolerance_mm": 0.01,
+               "servo_lag_mm": 0.03, "feedback_samples": 6000}
+    missed = {**figures, "completed": True, "path_time_s": 5.0, **verdict(figures, True)}
+    assert missed["within_tolerance"] is False and missed["verdict"]["passed"] is False
+    assert "0.0306 mm" in missed["verdict"]["says"] and "beyond the chord tolerance 0.01 mm" in missed["verdict"]["says"]
+    assert cards(missed)[0][1:2] == ("beyond tolerance",) and cards(missed)[0][3] == "bad"
+    report = {"job_id": "p", "state": "succeeded", "reason": "", "cycle_time_s": 6.0, "max_following_error": {},
+              "setpoints": 1, "chunks": 1, "chunks_lost": 0, "kinematics": missed}
+    assert failed_verdicts(report) == ["kinematics"] and VERDICT_FAILED != 0
+    assert "verdict kinematics: FAILED" in summary(report)
+    held = {**figures, "max_tip_deviation_mm": 0.0077}
+    assert verdict(held, True)["within_tolerance"] and not verdict(held, False)["within_tolerance"]

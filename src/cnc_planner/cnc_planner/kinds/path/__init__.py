@@ -2,6 +2,7 @@
 every layout, 5-axis included."""
 from __future__ import annotations
 
+from .page import cards
 from .planning import plan_path
 from .report import path_section
 from cnc_planner.kinds.kind import JobKind, ReportSection
@@ -10,5 +11,5 @@ from cnc_planner.kinds.kind import JobKind, ReportSection
 KIND = JobKind(
     name="path",
     plan=plan_path,
-    report=ReportSection("kinematics", path_section),
+    report=ReportSection("kinematics", path_section, cards=cards),
 )

@@ -4,7 +4,7 @@ The kinematic chain samples the programmed lines into axis-space waypoints that 
 the tip within the chord tolerance (Kinematics.sample_path). Here they become motion:
 
 1. a rapid (ruckig, every joint time-synchronised) from where the machine stands to
-   the first pose;
+   the first pose, and the wait until the drive model's tip has settled there;
 2. the traverse: the joints move linearly between waypoints as functions of one path
    parameter ``s``, the cumulative segment time at the feed (ds/dt = 1 is the feed,
    or the slowest axis's max_velocity on segments where that binds). ``s`` follows a
@@ -20,10 +20,13 @@ whose steps would slow the traverse below the feed are exact stops unless mergin
 the stretches around them into one slower stretch is quicker (ruckig decides): a
 corner of a polyline stops, C turning on the spot in small steps runs through slower.
 The traverse is one ruckig profile per stretch between stops; a path without corners,
-such as a tilting 5-axis line, is a single profile.
+such as a tilting 5-axis line, is a single profile. The whole traverse is then
+compensated against the drive model and slowed where the predicted tip would still leave
+the chord tolerance (kinds.path.exact): the tip is exact on feedback, not only on command.
 """
 from __future__ import annotations
 
+import math
 from types import SimpleNamespace
 
 import numpy as np
@@ -31,14 +34,19 @@ import numpy as np
 from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_msgs_py.schema import JobError
 
+from .exact import CHORD_SHARE, exact_traverse
 from cnc_planner.kinematics import Kinematics, SampledPath
+from cnc_planner.motion import SERVO_PERIOD
 from cnc_planner.motion.builder import PlanBuilder
 from cnc_planner.motion.moves import Limits, RuckigMove, point_to_point
+from cnc_planner.motion.settle import settle_time
 from cnc_planner.motion.timeline import Piece
 
 
 INTERPOLATION_PERIOD = 1e-3  # s between setpoints (config/planner.yaml): velocity steps happen over it
 CORNER_SHARE = 0.5  # of an axis's max_acceleration that the velocity steps at waypoints may take
+SETTLE_SHARE = 0.1  # of the chord tolerance: the tip on feedback this close to the first pose before the path
+SETTLE_FLOOR = 5e-7  # m: but no closer than this: the encoders' counts keep the drives dithering about as much
 
 
 def plan_path(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin: Kinematics) -> None:
@@ -56,22 +64,28 @@ def plan_path(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin:
         raise JobError("spindle_rpm", f"a path on layout {machine.layout} positions the spindle as its "
                                       "C axis: leave spindle_rpm out (0)")
     previous = {j: builder.position(j) for j in joints}
+    points = np.asarray(p.points, float)
     tool_axes = None if p.tool_axis is None else np.asarray(p.tool_axis, float)
-    path = kin.sample_path(np.asarray(p.points, float), tool_axes, p.feed, p.chord_tolerance, previous, field="path")
+
+    def sample(feed: float) -> SampledPath:
+        return kin.sample_path(points, tool_axes, feed, CHORD_SHARE * p.chord_tolerance, previous, field="path")
+
+    path = sample(p.feed)
     if job.spindle_rpm > 0:
         builder.spindle(job.spindle_rpm)
-    builder.rapid({j: float(path.joints[j][0]) for j in joints})
-    start = max(builder.end_time(), builder.spindle_ready)
-    sections = traverse_sections(path, joints, machine)
-    builder.event(start, "path_start", points=len(p.points), waypoints=len(path.param),
-                  stops=max(len(sections) - 1, 0), feed=p.feed, chord_tolerance=p.chord_tolerance)
-    t = start
-    for section in sections:
-        for dof, joint in enumerate(joints):
-            builder.timelines[joint].add(Piece(t, section.duration, section.sampler(dof)),
-                                         float(section.q[-1, dof]))
-        t += section.duration
-    builder.event(t, "path_end", chord_tolerance=p.chord_tolerance, duration=t - start)
+    arrived = builder.rapid({j: float(path.joints[j][0]) for j in joints})
+    # the compensation starts from drives at rest on the first pose: wait until the tip is there
+    arrived += settle_time(builder, kin, arrived, max(SETTLE_SHARE * p.chord_tolerance, SETTLE_FLOOR), SERVO_PERIOD)
+    start = SERVO_PERIOD * math.ceil(max(arrived, builder.spindle_ready) / SERVO_PERIOD - 1e-9)
+    exact = exact_traverse(kin, machine, joints, points, p.chord_tolerance, p.feed, start, SERVO_PERIOD, sample,
+                           lambda sampled, share: traverse_sections(sampled, joints, machine, share=share))
+    t = start + exact.lead
+    builder.event(t, "path_start", points=len(p.points), waypoints=exact.waypoints, stops=exact.stops,
+                  feed=p.feed, planned_feed=exact.feed, chord_tolerance=p.chord_tolerance,
+                  predicted_tip_deviation=exact.deviation)
+    for dof, joint in enumerate(joints):
+        builder.timelines[joint].add(Piece(start, exact.duration, exact.sampler(dof)), float(path.joints[joint][-1]))
+    builder.event(t + exact.motion, "path_end", chord_tolerance=p.chord_tolerance, duration=exact.motion)
 
 
 class Traverse:
@@ -110,7 +124,7 @@ class Traverse:
 
 
 def traverse_sections(path: SampledPath, joints: list[str], machine: Machine,
-                      period: float = INTERPOLATION_PERIOD) -> list[Traverse]:
+                      period: float = INTERPOLATION_PERIOD, share: float = 1.0) -> list[Traverse]:
     """Split the sampled path at its exact stops and give each stretch limits for ``s``
     that keep every joint within its velocity, acceleration and jerk on every segment,
     the velocity steps at the waypoints included (over one interpolation ``period``).
@@ -120,6 +134,8 @@ def traverse_sections(path: SampledPath, joints: list[str], machine: Machine,
     them dropped, the merged stretch running at the lower speed) wherever ruckig says
     that is quicker: an isolated corner stays a stop, a run of small steps (C turning
     on the spot, a finely sampled curve at a high feed) becomes one slower stretch.
+    ``share`` of each axis's velocity, acceleration and jerk is the stretches' to use:
+    the rest is room for the drive compensation (kinds.path.exact).
     """
     q = np.stack([path.joints[j] for j in joints], axis=1)
     durations = np.asarray(path.durations, float)
@@ -129,9 +145,9 @@ def traverse_sections(path: SampledPath, joints: list[str], machine: Machine,
     if len(knots) < 2:
         return []
     axes = [machine.axes[j] for j in joints]
-    v_max = np.array([a.max_velocity for a in axes])
-    a_max = np.array([a.max_acceleration for a in axes])
-    j_max = np.array([a.max_jerk for a in axes])
+    v_max = share * np.array([a.max_velocity for a in axes])
+    a_max = share * np.array([a.max_acceleration for a in axes])
+    j_max = share * np.array([a.max_jerk for a in axes])
     slopes = np.abs(np.diff(q, axis=0) / np.diff(knots)[:, None])
     steps = np.abs(np.diff(np.diff(q, axis=0) / np.diff(knots)[:, None], axis=0))  # at s' = 1, inner knots
     with np.errstate(divide="ignore"):

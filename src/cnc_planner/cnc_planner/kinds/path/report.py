@@ -5,7 +5,12 @@ The programmed path is the job's points in program coordinates; each tip is meas
 to the nearest programmed segment. ``servo_lag_mm`` is the largest distance between
 FK(feedback) and FK(command) at the same instant: since the distance to a polyline
 moves by at most as much as the point does, the feedback deviation never exceeds the
-commanded deviation (within the chord tolerance) plus this lag.
+commanded deviation plus this lag. The planner compensates the drives' lag (kinds.path.exact),
+so the command leads the line: its deviation is the lead, not a miss.
+
+The verdict is the tip on feedback against the job's chord tolerance: ``within_tolerance``
+is true only for a completed path whose feedback tip stayed within ``chord_tolerance_mm``;
+``verdict`` says so for every reader (cnc-run exits non-zero on a failed verdict).
 """
 from __future__ import annotations
 
@@ -96,7 +101,8 @@ def path_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.nd
     if not starts:
         return {"chord_tolerance_mm": to_mm(job.path.chord_tolerance), "max_tip_deviation_mm": None,
                 "commanded_max_tip_deviation_mm": None, "servo_lag_mm": None, "feedback_samples": 0,
-                "completed": False, "path_time_s": None}
+                "completed": False, "path_time_s": None,
+                **verdict({"max_tip_deviation_mm": None, "chord_tolerance_mm": to_mm(job.path.chord_tolerance)}, False)}
     t0 = starts[-1]
     t1 = ends[-1] if ends and ends[-1] >= t0 else (float(run.command_t[-1]) if len(run.command_t) else t0)
     cols = [run.column(j) for j in kin.joints]
@@ -104,4 +110,18 @@ def path_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.nd
     cmd_in = (run.command_t >= t0 - 1e-9) & (run.command_t <= t1 + 1e-9)
     figures = path_figures(kin, np.asarray(job.path.points, float), run.command_t, run.command[:, cols], cmd_in,
                            run.feedback_t[fb_in], run.feedback[fb_in][:, cols], job.path.chord_tolerance)
-    return {**figures, "completed": bool(ends and ends[-1] >= t0), "path_time_s": t1 - t0}
+    completed = bool(ends and ends[-1] >= t0)
+    return {**figures, "completed": completed, "path_time_s": t1 - t0, **verdict(figures, completed)}
+
+
+def verdict(figures: dict, completed: bool) -> dict:
+    """The tip on feedback judged against the chord tolerance (mm as in the figures)."""
+    deviation, limit = figures.get("max_tip_deviation_mm"), figures["chord_tolerance_mm"]
+    within = bool(completed and deviation is not None and deviation <= limit)
+    if not completed:
+        said = "the path did not complete"
+    else:
+        said = (f"tip on feedback {deviation:.4f} mm from the programmed lines, "
+                f"{'within' if within else 'beyond'} the chord tolerance {limit:g} mm")
+    return {"within_tolerance": within,
+            "verdict": {"passed": within, "criterion": "tip on feedback within chord_tolerance", "says": said}}

@@ -29,15 +29,14 @@ from cnc_planner.vibration.waveform import Vibration, VibrationError, VibrationF
 TWO_PI = 6.283185307179586
 MAX_VIBRATION_FEED_S = 600.0  # one vibrated feed move at most this long: its compensation is
 # precomputed on the servo grid, so its memory grows with its duration
-
-
-_CHOSEN: dict[tuple, tuple] = {}  # choose_vibration's answers: it runs the drive model
+MAX_CHOSEN = 256  # choose_vibration's answers kept (it runs the drive model): a node plans for long
+_CHOSEN: dict[tuple, tuple] = {}
 
 
 def vibration_of(job: SimpleNamespace) -> Vibration | str | None:
     """The job's vibration, or AUTO (``vibration: auto``: the waveform is chosen per feed,
-    resolved); E and R without Q take the method's straight-stroke
-    waveform (vibration.er_vibration)."""
+    resolved); E and R without Q take the method's straight-stroke waveform
+    (vibration.er_vibration)."""
     v = job.vibration
     if v is None:
         return None
@@ -71,6 +70,8 @@ def resolved(vibration: Vibration | str, feed_per_rev: float, spindle_speed: flo
            tuple(np.concatenate([np.ravel(x) for x in (drive.kp, drive.velocity_ff, drive.accel_ff, drive.lag,
                                                        drive.resolution)]).tolist()))
     if key not in _CHOSEN:  # a drill's holes, a turn job's passes of one length
+        if len(_CHOSEN) >= MAX_CHOSEN:
+            _CHOSEN.clear()
         try:
             _CHOSEN[key] = choose_vibration(feed_per_rev, spindle_speed, axis, drive_model_factory, servo_period,
                                             rests, length, start_angle)

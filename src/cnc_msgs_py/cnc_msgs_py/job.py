@@ -29,34 +29,31 @@ SCHEMA = "cnc_job/1"
 KINDS = tuple(KIND_SCHEMAS)
 MIN_RPM = 1.0  # a spindle is off (0) or turns at least this fast
 
-VIBRATION_KEYS = Obj({
-    "D": Num("1", gt=0.0, max=50.0, default=None),
-    "Q": Num("1", gt=0.0, max=20.0, default=None),  # required with D; optional with E and R
-    "E": Num("1", gt=0.0, max=50.0, default=None),
-    "R": Num("1", gt=0.0, max=50.0, default=None),
-    "phase_shift": Num("deg", min=-360.0, max=360.0, default=0.0),
-    "D_step": Num("1", min=0.0, max=10.0, default=0.0),
-})
 AUTO = "auto"
 
 
 @dataclass(frozen=True)
-class VibrationSpec:
+class VibrationSpec(Obj):
     """``vibration: auto`` (the planner chooses D/Q or E/R/Q for the machine and spindle
     speed; parsed, the string ``auto``) or a mapping of the parameters (parsed, a namespace
     with every key, None where not given); a mapping's unknown keys are refused by name."""
-
-    default: Any = None
 
     def check(self, value: Any, path: str) -> SimpleNamespace | str:
         if value == AUTO:
             return AUTO
         if not isinstance(value, dict):
             raise JobError(path, f"expected {AUTO} or a mapping ({{D, Q}} or {{E, R}}), got {show(value)}")
-        return VIBRATION_KEYS.check(value, path)
+        return super().check(value, path)
 
 
-VIBRATION = VibrationSpec()
+VIBRATION = VibrationSpec({
+    "D": Num("1", gt=0.0, max=50.0, default=None),
+    "Q": Num("1", gt=0.0, max=20.0, default=None),  # required with D; optional with E and R
+    "E": Num("1", gt=0.0, max=50.0, default=None),
+    "R": Num("1", gt=0.0, max=50.0, default=None),
+    "phase_shift": Num("deg", min=-360.0, max=360.0, default=0.0),
+    "D_step": Num("1", min=0.0, max=10.0, default=0.0),
+}, default=None)
 
 JOB = Obj({
     "schema": Str((SCHEMA,)),

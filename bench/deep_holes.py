@@ -1,26 +1,32 @@
 """Deep holes (depth 5x the diameter): chip breaking by vibration against pecking, on mill3.
 
-20 holes of 3 mm, 15 mm deep, on a 4 x 5 grid at 8 mm pitch; every way is planned from a
-job document, its commands run through the servo drive model every 1 ms, and the feedback
-judged: cycle time (first to last axis motion) and the longest chip, in spindle revolutions
-and mm of depth (analyze_aircut per hole, from the surface to the bottom: the longest
-stretch the tool cuts without once being behind the surface cut before). Ways:
+20 holes of 3 mm, 15 mm deep, on a 4 x 5 grid at 8 mm pitch; every way is a job document
+run over topics (cnc_planner.runner: planner and bridge nodes on simulated time, from the
+machine's home, recorded), and the bridge's recorded feedback judged: cycle time (first to
+last axis motion) and the longest chip, in spindle revolutions and mm of depth
+(analyze_aircut per hole, from the surface to the bottom: the longest stretch the tool cuts
+without once being behind the surface cut before). The planning time is taken offline
+(plan_job on this process). Ways:
 
 - vibration: D 1.5, Q 1.2 on the Z feed at 0.1 mm/rev, at the highest spindle speed the
   Z axis follows (its jerk limit, 200 m/s^3, caps it; check_vibration names it);
+- vibration: auto at the drill's own 3000 rpm: the planner picks a waveform Z follows there
+  (one vibration every E revolutions; the row names what it chose);
 - G83: pecks of 1 x D with a full retract to R, same speed and feed per rev, and at
   3000 rpm (what the drill would run without the vibration's speed cap);
 - G73: chip-break retracts, a full one every 3rd, at 3000 rpm;
 - LinuxCNC's G83 on the 3000 rpm pecked job, the same limits: read from
   bench/results/peer.txt (`make bench-peer` runs LinuxCNC, in real time).
 
-Run from the workspace root:  python bench/deep_holes.py  (a few minutes). Writes the table
-to bench/results/deep_holes.txt as well.
+Run from the workspace root:  python bench/deep_holes.py  (about 10 minutes: over 10 minutes
+of machine time, simulated). Writes the table to bench/results/deep_holes.txt as well.
 """
 from __future__ import annotations
 
+import json
 import math
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -32,7 +38,8 @@ sys.path[:0] = [str(ROOT / "src" / p) for p in ("cnc_msgs_py", "cnc_analysis", "
 from cnc_msgs_py.job import parse_job  # noqa: E402
 from cnc_msgs_py.machine import SPINDLE, load_machine  # noqa: E402
 from cnc_planner.planning import plan_job  # noqa: E402
-from cnc_planner.prediction import simulated_feedback  # noqa: E402
+from cnc_planner.runner import run_job  # noqa: E402
+from cnc_analysis.recording import read_run  # noqa: E402
 from cnc_planner.vibration.waveform import Vibration, _speed_limits  # noqa: E402
 from cnc_analysis.aircut import analyze_aircut  # noqa: E402
 from cnc_analysis.drilling import analyze_drilling  # noqa: E402
@@ -42,7 +49,8 @@ MACHINE = load_machine("mill3")
 DIAMETER_MM, DEPTH_MM, PITCH_MM, R_GAP_MM = 3.0, 15.0, 8.0, 2.0
 PECK_RPM = 3000.0  # the pecked job LinuxCNC's G83 runs too (bench/peer)
 FEED_PER_REV_MM = 0.1
-START = {"x": -0.008, "y": 0.0, "z": 0.05}
+HOME = dict(zip(MACHINE.joint_names, MACHINE.home_position))  # where a run over topics starts
+START = {"x": -0.008, "y": 0.0, "z": 0.05}  # where bench/peer starts LinuxCNC's G83 (8 mm left of HOME)
 HOLES = [[PITCH_MM * i, PITCH_MM * j] for j in range(4) for i in range(5)]
 
 
@@ -63,17 +71,23 @@ def pecked_job() -> dict:
     return job(PECK_RPM, peck={"depth": DIAMETER_MM})
 
 
-def judge(doc: dict) -> tuple[float, float, float, float]:
-    """(planning s, cycle time s, longest chip revs, longest chip mm of depth) on feedback."""
+def judge(doc: dict) -> tuple[float, float, float, float, list[dict]]:
+    """(planning s, cycle time s, longest chip revs, longest chip mm of depth, the vibration
+    events' records of the waveform) of the job run over topics, judged on recorded feedback."""
     parsed = parse_job(doc)
     start = time.perf_counter()
-    plan = plan_job(parsed, MACHINE, START)
+    plan_job(parsed, MACHINE, HOME)
     planning = time.perf_counter() - start
-    t, fb = simulated_feedback(plan, MACHINE)
-    x, y, z, spindle = (fb[:, plan.joints.index(j)] for j in ("x", "y", "z", SPINDLE))
+    with tempfile.TemporaryDirectory() as out:
+        status = run_job(json.dumps(doc), doc["job_id"], MACHINE.name, Path(out) / "bag")
+        assert status["state"] == "succeeded", status
+        run = read_run(Path(out) / "bag")
+    t, fb = run.feedback_t, run.feedback
+    x, y, z, spindle = (fb[:, run.column(j)] for j in ("x", "y", "z", SPINDLE))
     cycle, longest, violations = cycle_and_chip(t, x, y, z, spindle)
     assert violations == 0
-    return planning, cycle, longest, longest * FEED_PER_REV_MM
+    chosen = [e["vibration"] for e in run.events if e.get("name") == "vibration_feed"]
+    return planning, cycle, longest, longest * FEED_PER_REV_MM, chosen
 
 
 def cycle_and_chip(t: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray,
@@ -112,20 +126,28 @@ def main() -> None:
     slow = max_vibration_rpm(Vibration(D=1.5, Q=1.2))
     ways = [
         (f"vibration D1.5 Q1.2, {slow:.0f} rpm", job(slow), vib),
+        (f"vibration auto, {PECK_RPM:.0f} rpm", job(PECK_RPM), "auto"),
         (f"G83 peck 3 mm (1 x D), {slow:.0f} rpm", job(slow, peck={"depth": DIAMETER_MM}), None),
         (f"G83 peck 3 mm (1 x D), {PECK_RPM:.0f} rpm", pecked_job(), None),
         (f"G73 break 3 mm, full every 3rd, {PECK_RPM:.0f} rpm",
          job(PECK_RPM, peck={"depth": DIAMETER_MM, "retract": "break", "full_every": 3}), None),
     ]
     lines = [f"Deep holes on mill3: {len(HOLES)} holes of {DIAMETER_MM:g} mm, {DEPTH_MM:g} mm deep "
-             f"({DEPTH_MM / DIAMETER_MM:g} x D), {PITCH_MM:g} mm pitch, {FEED_PER_REV_MM:g} mm/rev; on drive-model feedback",
+             f"({DEPTH_MM / DIAMETER_MM:g} x D), {PITCH_MM:g} mm pitch, {FEED_PER_REV_MM:g} mm/rev; "
+             "run over topics, judged on the recorded feedback",
              f"{'way':44s} {'plan s':>7s} {'cycle s':>8s} {'chip revs':>10s} {'chip mm':>8s}"]
+    notes = []
     for name, doc, vibration in ways:
         if vibration is not None:
             doc["vibration"] = vibration
-        planning, cycle, revs, mm = judge(doc)
+        planning, cycle, revs, mm, chosen = judge(doc)
         lines.append(f"{name:44s} {planning:7.1f} {cycle:8.2f} {revs:10.2f} {mm:8.2f}")
         print(lines[-1], flush=True)
+        if vibration == "auto":
+            c = chosen[0]
+            notes.append(f"  (auto chose E {c['E']:g} R {c['R']:g} Q {c['Q']:g} for every hole: one vibration every "
+                         f"{c['window_revs']:g} revolutions; predicted chip {c['predicted_chip_revs']:.2f} revs)")
+            lines.append(notes[-1])
     lines += linuxcnc_g83()
     lines.append("chip: the longest stretch cut without an air-cut (analyze_aircut), per hole from the surface")
     text = "\n".join(lines)

@@ -13,7 +13,7 @@ from cnc_msgs_py.machine import load_machine
 from cnc_planner.planning import plan_job
 from cnc_planner.motion import SERVO_PERIOD
 from cnc_analysis.recording import read_run
-from support import JOBS
+from support import JOBS, cnc, load_report
 from test_methods import run_and_reanalyse
 
 DEPTH_TOLERANCE_MM = 0.005
@@ -160,3 +160,33 @@ def test_air_path_rises_only_over_the_clamp_between_two_holes(tmp_path):
     assert np.all(clamped[others] <= plain[others] + 2 * SERVO_PERIOD), (clamped, plain)
     assert np.all(clamped[others] < high[others] - 0.02), (clamped, high)
     assert clamped[CROSSING] > plain[CROSSING] + 0.02  # 8 mm higher and back
+
+
+def test_deep_holes_at_full_speed_with_vibration_auto_beat_pecking_over_topics(tmp_path):
+    """config/jobs/drill_deep_auto.yaml: 3 holes of 3 mm, 15 mm deep (5 x D), at 3000 rpm and
+    0.1 mm/rev with ``vibration: auto``, run over topics: the planner picks a waveform mill3's
+    Z follows at that speed (one vibration every few revolutions) and records it; on the
+    bridge's feedback every hole's chip is at most 4 revolutions, no sample has the tip
+    below R off the hole, and the cycle takes at most 0.85x the same holes pecked G73-style
+    (3 mm, a full retract every 3rd) at the same speed, also run over topics."""
+    report = run_and_reanalyse("drill_deep_auto.yaml", tmp_path / "auto")
+    drill = report["drill"]
+    assert report["state"] == "succeeded" and drill["safety_violations"] == 0 and len(drill["holes"]) == 3
+    for hole in drill["holes"]:
+        assert hole["depth_mm"] == pytest.approx(15.0, abs=DEPTH_TOLERANCE_MM)
+        feedback = hole["aircut"]["feedback"]
+        assert feedback["revolutions"] >= 140  # 15 mm at 0.1 mm/rev below the surface
+        assert feedback["max_chip_revs"] <= 4.0
+    choices = [e["vibration"] for e in read_run(tmp_path / "auto" / "bag").events if e.get("name") == "vibration_feed"]
+    assert len(choices) == 3 and all(c == choices[0] for c in choices)
+    assert choices[0]["auto"] and choices[0]["E"] <= 4 and choices[0]["predicted_chip_revs"] <= 4.0
+
+    pecked = {k: v for k, v in load_job_file(JOBS / "drill_deep_auto.yaml").items() if k != "vibration"}
+    pecked["job_id"] = "drill-deep-g73"
+    pecked["drill"] = {**pecked["drill"], "peck": {"depth": 3.0, "retract": "break", "full_every": 3}}
+    (tmp_path / "g73.json").write_text(json.dumps(pecked))
+    result = cnc("cnc-run", tmp_path / "g73.json", "--out", tmp_path / "g73")
+    assert result.returncode == 0, result.stderr[-3000:]
+    g73 = load_report(tmp_path / "g73")["drill"]
+    assert g73["safety_violations"] == 0
+    assert drill["cycle_time_s"] <= 0.85 * g73["cycle_time_s"]

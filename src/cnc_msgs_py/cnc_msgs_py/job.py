@@ -12,6 +12,7 @@ arcs: ``cnc_msgs_py.kinds.turn``), found through ``KIND_SCHEMAS``.
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
@@ -20,7 +21,7 @@ import yaml
 
 from .kinds import BLOCK_ORDER, KIND_SCHEMAS
 from .kinds.kind import MAX_LIST  # noqa: F401  public: the longest list (holes, moves, points) a job may hold
-from .kinds.kind import KindSchema
+from .kinds.kind import THREAD_ONLY_VIBRATION, KindSchema
 from .schema import JobError, List, Num, Obj, Str, given, show
 from .units import rpm
 
@@ -28,7 +29,24 @@ SCHEMA = "cnc_job/1"
 KINDS = tuple(KIND_SCHEMAS)
 MIN_RPM = 1.0  # a spindle is off (0) or turns at least this fast
 
-VIBRATION = Obj({
+AUTO = "auto"
+
+
+@dataclass(frozen=True)
+class VibrationSpec(Obj):
+    """``vibration: auto`` (the planner chooses D/Q or E/R/Q for the machine and spindle
+    speed; parsed, the string ``auto``) or a mapping of the parameters (parsed, a namespace
+    with every key, None where not given); a mapping's unknown keys are refused by name."""
+
+    def check(self, value: Any, path: str) -> SimpleNamespace | str:
+        if value == AUTO:
+            return AUTO
+        if not isinstance(value, dict):
+            raise JobError(path, f"expected {AUTO} or a mapping ({{D, Q}} or {{E, R}}), got {show(value)}")
+        return super().check(value, path)
+
+
+VIBRATION = VibrationSpec({
     "D": Num("1", gt=0.0, max=50.0, default=None),
     "Q": Num("1", gt=0.0, max=20.0, default=None),  # required with D; optional with E and R
     "E": Num("1", gt=0.0, max=50.0, default=None),
@@ -60,8 +78,13 @@ JOB = Obj({
 })
 
 
-def _check_vibration(vib: SimpleNamespace) -> None:
-    """D with Q, or E and R (for D < 1), and a retreat that fits in the vibration's period."""
+def _check_vibration(vib: SimpleNamespace | str, kind: KindSchema) -> None:
+    """D with Q, or E and R (for D < 1), and a retreat that fits in the vibration's period;
+    or auto, on the kinds whose vibration is the feed's waveform (a thread's has its own keys)."""
+    if vib == AUTO:
+        if not all(key in kind.unused for key in THREAD_ONLY_VIBRATION):
+            raise JobError("vibration", f"auto is not available for {kind.name} jobs yet: give D and Q")
+        return
     if vib.D is None and (vib.E is None or vib.R is None):
         raise JobError("vibration", "give D, or E and R (for D < 1)")
     if vib.D is not None and (vib.E is not None or vib.R is not None):
@@ -87,7 +110,7 @@ def _check_common(job: SimpleNamespace, kind: KindSchema) -> None:
     if kind.needs_spindle and job.spindle_rpm <= 0.0:
         raise JobError("spindle_rpm", f"must be > 0 for a {kind.name} job")
     if job.vibration is not None:
-        _check_vibration(job.vibration)
+        _check_vibration(job.vibration, kind)
 
 
 def _check_unused(doc: dict, job: SimpleNamespace, kind: KindSchema) -> None:

@@ -378,6 +378,11 @@ class VibrationFeed:
         """Seconds from the start at rest to the end at rest at `length`, whole servo periods."""
         return self._duration
 
+    @property
+    def arrival(self) -> float:
+        """Seconds until the motion reaches `length`; the compensated command settles after."""
+        return self._t_end
+
     # -- the ideal waveform -------------------------------------------------------------
     def _steady(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Progress locked to the spindle angle: feed line plus Q*F*w(D*theta/2pi)."""
@@ -459,8 +464,11 @@ class VibrationFeed:
         n = math.ceil((self._t_end + COMPENSATION_TAIL) / self._period) + 1
         t = np.arange(n) * self._period
         s, v, a = self._ideal(t)
+        # settled to half an encoder count: the drive cannot show less, and the tool rests at
+        # `length` meanwhile, cutting the ring the last revolution left
         self._correction = learned_command(drive, s[:, None], v[:, None], a[:, None], self._lead_periods // 2,
-                                           round(self._duration / self._period), self._period, self._band)[:, :, 0]
+                                           round(self._duration / self._period), self._period, self._band,
+                                           tolerance=0.5 * float(drive.resolution[0]))[:, :, 0]
         self._duration = (self._correction.shape[1] - 1) * self._period
 
     def sample(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -474,5 +482,19 @@ class VibrationFeed:
         done = t >= self._duration
         s[done], v[done], a[done] = self._length, 0.0, 0.0
         return s, v, a
+
+    @property
+    def settle_start(self) -> float:
+        """The first servo instant at or after `arrival`: from it on the motion rests at
+        `length` and only the command's correction still moves (``settling``)."""
+        return math.ceil(self._t_end / self._period - 1e-9) * self._period
+
+    def settling(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The command's correction at local times t >= settle_start (zero without
+        compensation and from `duration` on): what a move that follows from `length` at
+        once carries on top of its own command, so that the feedback still arrives as
+        planned (the drive is linear; its feedback is the sum of both responses)."""
+        s, v, a = self.sample(np.asarray(t, dtype=float))
+        return s - self._length, v, a
 
 

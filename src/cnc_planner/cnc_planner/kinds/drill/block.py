@@ -15,7 +15,10 @@ from cnc_planner.kinds.drill.peck import peck_of, xy_plane
 from cnc_planner.kinds.drill.tilted import tilted, tilted_frame
 from cnc_planner.kinematics import Kinematics
 from cnc_planner.travel import check_travel, to_axes
-from cnc_planner.vibration.feed import TWO_PI, vibration_error, vibration_of
+from cnc_servo_bridge.drive import DriveModel
+
+from cnc_planner.motion import SERVO_PERIOD
+from cnc_planner.vibration.feed import TWO_PI, resolved, vibration_error, vibration_of
 from cnc_planner.vibration.waveform import VibrationError, check_vibration
 
 
@@ -83,12 +86,18 @@ def _mm_of(point: list[float]) -> str:
 
 def drill_vibration(job: SimpleNamespace, machine: Machine) -> dict:
     """The drill feed's vibration and spindle speed (DrillCycle fields), checked up front
-    like a move's: no air-cut or an axis that cannot follow is refused naming min Q / max rpm."""
+    like a move's: no air-cut or an axis that cannot follow is refused naming what works
+    (vibration.feed.vibration_error). ``vibration: auto`` is chosen here for the Z axis,
+    its drive and the job's feed and speed (vibration.auto)."""
     vibration = vibration_of(job)
     if vibration is None:
         return {}
+    z = machine.axes["z"]
+    feed_per_rev = job.drill.feed / (job.spindle_rpm / TWO_PI)
+    vibration, chosen = resolved(vibration, feed_per_rev, job.spindle_rpm, z,
+                                 lambda: DriveModel(machine, SERVO_PERIOD, ("z",)), SERVO_PERIOD, rests=False)
     try:
-        check_vibration(vibration, job.drill.feed / (job.spindle_rpm / TWO_PI), job.spindle_rpm, machine.axes["z"])
+        check_vibration(vibration, feed_per_rev, job.spindle_rpm, z)
     except VibrationError as err:
-        raise vibration_error(err) from err
-    return {"vibration": vibration, "spindle_speed": job.spindle_rpm}
+        raise vibration_error(err, vibration, feed_per_rev, job.spindle_rpm, z) from err
+    return {"vibration": vibration, "spindle_speed": job.spindle_rpm, "vibration_choice": chosen}

@@ -37,6 +37,7 @@ def conventional(cycle: DrillCycle, xy_moves: list[XYMove], strokes: Strokes) ->
             infos.append({"hole": i, "x": xy.target["x"], "y": xy.target["y"], "mode": None,
                           "s1": float(t_s1), "s1_end": float(xy_end), "s2": float(t_s2), "r_down": float(t_down),
                           "s3": float(t_s3), "r_up": float(t_up)})
+        strokes.settle_corrections(builder)
         return infos
 
     return emit

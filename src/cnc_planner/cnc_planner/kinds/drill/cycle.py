@@ -47,6 +47,7 @@ class DrillCycle:
     compensate_xy: bool = True
     vibration: Vibration | None = None
     spindle_speed: float = 0.0
+    vibration_choice: dict | None = None  # the waveform's parameters as events record them (auto or given)
     dwell: float = 0.0
     hole_planes: tuple[tuple[float, float, float], ...] | None = None
     peck: Peck | None = None

@@ -92,6 +92,7 @@ def overlapped(cycle: DrillCycle, start: dict[str, float], z: ZAxis, xy_moves: l
             infos.append(info)
         if command is not None:
             command.write(builder)
+        strokes.settle_corrections(builder)
         return infos
 
     return emit

@@ -39,6 +39,7 @@ class Strokes:
         self.bottoms = bottoms
         self.dwells = dwells
         self._vibrated: dict[tuple[float, float], VibrationFeed] = {}
+        self._settling: list[tuple[PlanBuilder, float, float, VibrationFeed]] = []
 
     def feed_to_depth(self, builder: PlanBuilder, t_down: float, hole: int, overlapped: bool,
                       plane: float) -> float:
@@ -74,8 +75,11 @@ class Strokes:
     def vibrated(self, builder: PlanBuilder, t_down: float, hole: int) -> float:
         """S2 below R with the chip-breaking vibration: Z from rest at the hole's R to rest
         at its bottom, the waveform locked to the spindle angle and its command
-        pre-compensated with the drive model (VibrationFeed); returns its end time. Strokes
-        are cached by length and start angle, since the timing search replans the cycle."""
+        pre-compensated with the drive model (VibrationFeed); returns when the motion
+        arrives at the bottom. What follows (a dwell, the retract) starts there: the
+        command's correction, still settling, rides on it (settle_corrections), so no
+        revolution is spent at the bottom waiting for it. Strokes are cached by length and
+        start angle, since the timing search replans the cycle."""
         c = self.cycle
         _, top, bottom = c.planes(hole)
         angle = builder.timelines[SPINDLE].position_at(t_down)
@@ -96,12 +100,36 @@ class Strokes:
             progress, v, a = move.sample(t)
             return top - progress, -v, -a
 
-        builder.timelines["z"].add(Piece(t_down, move.duration, sample), bottom)
+        end = t_down + move.settle_start
+        builder.timelines["z"].add(Piece(t_down, move.settle_start, sample), bottom)
+        if move.duration > move.settle_start:
+            self._settling.append((builder, end, t_down + move.duration, move))
         builder.event(t_down, "vibration_feed", start=[top], direction=[-1.0], joints=["z"],
                       length=top - bottom, feed_per_rev=c.feed * 2 * math.pi / c.spindle_speed,
-                      field="drill", hole=hole)
-        builder.event(t_down + move.duration, "vibration_end", hole=hole)
-        return t_down + move.duration
+                      field="drill", hole=hole, vibration=c.vibration_choice)
+        builder.event(end, "vibration_end", hole=hole)
+        return end
+
+    def settle_corrections(self, builder: PlanBuilder) -> None:
+        """Superimpose each vibrated stroke's settling correction (VibrationFeed.settling)
+        on the Z pieces that follow it in ``builder``: call once the cycle's Z is complete.
+
+        Raises:
+            DrillError: a correction outlasts the Z pieces planned after its stroke (the
+                cycle would end while Z still settles), which the cycle never plans.
+        """
+        mine = [entry for entry in self._settling if entry[0] is builder]
+        self._settling = [entry for entry in self._settling if entry[0] is not builder]
+        z = builder.timelines["z"]
+        for _, t0, t1, move in mine:
+            covered = 0.0
+            for k, piece in enumerate(z.pieces):
+                lo, hi = max(piece.start, t0), min(piece.end, t1)
+                if hi > lo:
+                    z.pieces[k] = Piece(piece.start, piece.duration, _with_settling(piece, t0, t1, move))
+                    covered += hi - lo
+            if covered < t1 - t0 - 1e-9:
+                raise DrillError("drill", f"the Z command still settles {t1 - t0 - covered:.3f} s after the cycle")
 
     def pecks(self, builder: PlanBuilder, t: float, hole: int, v0: float, last: bool = True) -> float:
         """The peck sequence of a hole from its R (moving at v0) to rest at its bottom, its
@@ -119,3 +147,24 @@ class Strokes:
             if last or k < len(steps) - 1:
                 t = add_z(builder, t, step.move)
         return t
+
+
+def _with_settling(piece: Piece, t0: float, t1: float, move: VibrationFeed):
+    """The piece's sampler plus the stroke's settling correction (down: Z is -progress)
+    between plan times t0 (its settle_start) and t1."""
+    base = piece.sample
+    offset = move.settle_start - t0
+
+    def sample(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        p, v, a = base(t)
+        g = t + piece.start
+        inside = (g >= t0) & (g < t1)
+        if inside.any():
+            p, v, a = p.copy(), v.copy(), a.copy()
+            ds, dv, da = move.settling(g[inside] + offset)
+            p[inside] -= ds
+            v[inside] -= dv
+            a[inside] -= da
+        return p, v, a
+
+    return sample

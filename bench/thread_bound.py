@@ -2,7 +2,7 @@
 
 Each job is run with cnc-run (planner and bridge nodes, sim time, recorded to a bag) and
 judged from the bag alone by the project-independent readers in test/: thread_reader
-(chips and helix on feedback) and thread_bound (the Z-only bound from the job document and
+(chips and helix on feedback) and z_only_bound (the Z-only bound from the job document and
 the machine's Z limits, and the cycle from the first to the last x/z motion on feedback).
 
 Columns: cycle s over topics; bound s; ratio; the bound's parts (approach from home onto
@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "test"))
 
 from publish import write_result  # noqa: E402
-from thread_bound import cycle_time, z_only_bound  # noqa: E402
+from z_only_bound import cycle_time, z_only_bound  # noqa: E402
 from thread_reader import judge, read_bag  # noqa: E402
 
 JOBS = ("thread_m12.yaml", "thread_m16.yaml")
@@ -55,7 +55,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         rows = [row(name, Path(tmp) / name) for name in JOBS]
     lines = [
-        "Threads over topics against the independent Z-only bound (test/thread_bound.py): cnc-run on the",
+        "Threads over topics against the independent Z-only bound (test/z_only_bound.py): cnc-run on the",
         "shipped lathe, judged from the bag. cycle: first to last x/z motion on feedback; bound: approach",
         "from home onto the helix at the face + passes x stroke (face to end_z at lead speed) + (passes-1)",
         "x shortest Z return (end_z -> face, at lead speed both ends) + final (end_z -> rest at start_z),",

@@ -1,7 +1,7 @@
 """Threads over topics against the independent Z-only lower bound (issue 25).
 
 cnc-run runs each job through the planner and bridge nodes and records the bag; the bag
-alone is judged by readers that import nothing of this project: test/thread_bound.py (the
+alone is judged by readers that import nothing of this project: test/z_only_bound.py (the
 cycle, first to last x/z motion on feedback, and the bound from the job document and the
 machine's Z limits) and test/thread_reader.py (chips and helix on feedback).
 
@@ -18,7 +18,7 @@ import os
 import pytest
 
 from support import JOBS, cnc
-from thread_bound import cycle_time, z_only_bound
+from z_only_bound import cycle_time, z_only_bound
 from thread_reader import judge, read_bag
 
 ISSUE_RATIO = 1.10

@@ -31,11 +31,13 @@ def test_a_job_runs_in_real_time_mode(tmp_path):
 
 
 def _tool_path(k: int, points: int) -> dict:
-    """Path job k: a zigzag of ``points`` points, shifted by k so that no two are alike.
-    Planning a path takes time in proportion to its points (one segment, however long)."""
+    """Path job k: a 0.5 mm zigzag of ``points`` points, shifted by k so that no two are alike.
+    Planning a path takes time in proportion to its points (one segment, however long); the
+    zigzag is short enough that 8000 points (the most two rounds reach) stay under the 600 s
+    a path may last (about 52 s per 1000 points at 900 mm/min)."""
     return {"schema": "cnc_job/1", "job_id": f"rt-path-{k}", "kind": "path", "machine": "mill3",
             "spindle_rpm": 3000, "tool": {"length": 0.0, "diameter": 6.0},
-            "path": {"points": [[10.0 * (i % 2) + 0.01 * k, 0.05 * (i % 1000), -1.0] for i in range(points)],
+            "path": {"points": [[0.5 * (i % 2) + 0.01 * k, 0.05 * (i % 1000), -1.0] for i in range(points)],
                      "feed": 900, "chord_tolerance": 0.01}}
 
 

@@ -137,8 +137,14 @@ class Recorder(Node):
             self.ack_pub.publish(Time(sec=self.feedback_ns // NS, nanosec=self.feedback_ns % NS))
 
     def ready(self) -> bool:
-        """Planner listening for goals and bridge publishing feedback."""
-        return self.goal_pub.get_subscription_count() >= 2 and self.feedback_ns > 0
+        """Planner listening for goals and talking, and bridge publishing feedback.
+
+        The goal publisher seeing the planner's subscription is not enough: the planner's
+        side of that match may come later, and a volatile reader drops what was sent before
+        it matched (a goal lost on a loaded host: the planner stayed idle and cnc-run waited
+        out its timeout). The planner's first heartbeat, heard here, shows both participants
+        have discovered each other's endpoints."""
+        return self.goal_pub.get_subscription_count() >= 2 and self.feedback_ns > 0 and self.planner_heartbeats > 0
 
 
 class Session:

@@ -351,4 +351,6 @@ def test_cancel_mid_program_ends_in_a_controlled_stop(tmp_path):
         v = run.command_velocity[:, run.column(axis)]
         assert np.abs(np.diff(v) / np.diff(run.command_t)).max() <= machine.axes[axis].max_acceleration * 1.01
         assert abs(v[-1]) < 1e-9 and abs(run.feedback_velocity[-1, run.column(axis)]) < 1e-4  # at rest
-    assert run.command[-1, run.column("x")] < 0.040 - 1e-4  # stopped before the last hole
+    # The program did not run to its end: no job_end was published (where the stop lands
+    # depends on how late the cancel arrives, which a loaded host changes; that it stops does not).
+    assert not [e for e in run.events if e.get("job_id") == doc["job_id"] and e["name"] == "job_end"]

@@ -1,11 +1,16 @@
 """Helpers shared by the integration tests: paths and the console scripts."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import subprocess
 import sys
 from pathlib import Path
+
+from hypothesis import strategies as st
+
+from cnc_msgs_py.machine import SPINDLE, Machine
 
 ROOT = Path(__file__).resolve().parents[1]
 JOBS = ROOT / "config" / "jobs"
@@ -78,3 +83,22 @@ SHORT = [{"rapid": {"x": 5.0}}, {"rapid": {"x": 0.0}}]
 def move_job(job_id: str, moves: list[dict]) -> str:
     """A mill3 move job as sent on job_goal (JSON)."""
     return json.dumps({"schema": "cnc_job/1", "job_id": job_id, "kind": "move", "machine": "mill3", "move": moves})
+
+
+def log_uniform(lo: float, hi: float) -> st.SearchStrategy[float]:
+    return st.floats(0.0, 1.0).map(lambda u: lo * (hi / lo) ** u)
+
+
+@st.composite
+def machines(draw, base: Machine) -> Machine:
+    """The base machine with every positioning axis's jerk and drive drawn anew."""
+    axes, drives = dict(base.axes), dict(base.drives)
+    for name in base.joint_names:
+        if name == SPINDLE:
+            continue
+        axes[name] = dataclasses.replace(axes[name], max_jerk=draw(log_uniform(50.0, 1e6)))
+        drives[name] = dataclasses.replace(
+            drives[name], kp=draw(st.floats(10.0, 150.0)), velocity_ff=draw(st.floats(0.0, 1.0)),
+            accel_ff=draw(st.floats(0.0, 1.0)), velocity_lag=draw(log_uniform(2e-4, 1e-2)),
+            resolution=draw(log_uniform(1e-8, 1e-5)), following_error_limit=draw(log_uniform(1e-3, 2e-2)))
+    return dataclasses.replace(base, name=f"{base.name}_drawn", axes=axes, drives=drives)

@@ -13,35 +13,15 @@ import dataclasses
 
 import pytest
 from hypothesis import HealthCheck, Phase, given, settings
-from hypothesis import strategies as st
 
 from cnc_msgs_py.job import load_job_file, parse_job
-from cnc_msgs_py.machine import SPINDLE, Machine, load_machine
+from cnc_msgs_py.machine import Machine, load_machine
 from cnc_msgs_py.schema import JobError
 from cnc_planner.planning import INTERNAL, plan_job
 from cnc_planner.motion import SERVO_PERIOD
 from cnc_planner.motion.plan_check import check_plan
 from cnc_planner.report import build_report, predicted_run
-from support import EXAMPLES, JOBS, check_verified_properties
-
-
-def log_uniform(lo: float, hi: float) -> st.SearchStrategy[float]:
-    return st.floats(0.0, 1.0).map(lambda u: lo * (hi / lo) ** u)
-
-
-@st.composite
-def machines(draw, base: Machine) -> Machine:
-    """The base machine with every positioning axis's jerk and drive drawn anew."""
-    axes, drives = dict(base.axes), dict(base.drives)
-    for name in base.joint_names:
-        if name == SPINDLE:
-            continue
-        axes[name] = dataclasses.replace(axes[name], max_jerk=draw(log_uniform(50.0, 1e6)))
-        drives[name] = dataclasses.replace(
-            drives[name], kp=draw(st.floats(10.0, 150.0)), velocity_ff=draw(st.floats(0.0, 1.0)),
-            accel_ff=draw(st.floats(0.0, 1.0)), velocity_lag=draw(log_uniform(2e-4, 1e-2)),
-            resolution=draw(log_uniform(1e-8, 1e-5)), following_error_limit=draw(log_uniform(1e-3, 2e-2)))
-    return dataclasses.replace(base, name=f"{base.name}_drawn", axes=axes, drives=drives)
+from support import EXAMPLES, JOBS, check_verified_properties, machines
 
 
 def refused_or_verified(kind: str, machine: Machine, drill: dict | None = None,

@@ -1,11 +1,14 @@
 """A node spun by cnc_msgs_py.node survives what its callbacks or the executor raise."""
 from __future__ import annotations
 
+import os
+import signal
+
 import pytest
 import rclpy
 from rclpy.node import Node
 
-from cnc_msgs_py.node import spin
+from cnc_msgs_py.node import run_node, spin
 
 RCLPY_ERROR = "Unable to convert call argument '0' to Python object"  # as take_message raised it
 
@@ -45,3 +48,24 @@ def test_an_error_while_shutting_down_ends_the_spin_quietly(node):
     node.create_timer(0.001, tick)
     spin(node)  # returns, does not raise
     assert len(ticks) == 1
+
+
+def test_ctrl_c_asks_for_a_stop_and_never_interrupts_a_callback():
+    """SIGINT raised as KeyboardInterrupt inside rclpy's take_message came out as the
+    RuntimeError above and the stop was lost; now it only ends the spin."""
+    finished = []
+
+    def make() -> Node:
+        node = Node("stoppable")
+
+        def tick() -> None:
+            os.kill(os.getpid(), signal.SIGINT)
+            finished.append(sum(range(1000)))  # the callback runs to its end
+
+        node.create_timer(0.001, tick)
+        return node
+
+    before = signal.getsignal(signal.SIGINT)
+    assert run_node(make, "stoppable", [], package="cnc_msgs_py") == 0
+    assert finished and finished[0] == 499500
+    assert signal.getsignal(signal.SIGINT) is before  # the caller's handler is back

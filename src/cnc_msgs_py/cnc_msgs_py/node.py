@@ -8,12 +8,14 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
+import threading
 import traceback
 from typing import Callable
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
@@ -21,6 +23,9 @@ from rclpy.utilities import remove_ros_args
 from .machine import MachineError
 from .parameters import Param
 from .tool import tool_parser
+
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+STOP_POLL_S = 0.1  # longest a requested stop waits for the executor to wake
 
 ROS_USAGE = """ROS arguments (after --ros-args, as with `ros2 run`):
   -r __ns:=/cnc             the machine's namespace (default: none; the tools use /cnc)
@@ -57,7 +62,9 @@ def run_node(make: Callable[[], Node], name: str, args: list[str] | None = None,
     if prog == "__main__.py" or prog.endswith(".py"):
         prog = name
     usage(prog, description, package or name, parameters or {}).parse_args(remove_ros_args([prog, *argv])[1:])
-    # Ctrl-C (SIGINT) becomes KeyboardInterrupt in spin, so the node is destroyed cleanly.
+    # SIGINT/SIGTERM ask for a stop instead of raising KeyboardInterrupt wherever the
+    # interpreter happens to be: raised inside rclpy's take_message it came out as
+    # "Unable to convert call argument '0' to Python object" and the stop was lost.
     rclpy.init(args=[prog, *argv], signal_handler_options=SignalHandlerOptions.NO)
     try:
         node = make()
@@ -65,22 +72,33 @@ def run_node(make: Callable[[], Node], name: str, args: list[str] | None = None,
         print(f"{name}: {err}", file=sys.stderr)
         rclpy.try_shutdown()
         return 2
+    stop = threading.Event()
+    previous = {sig: signal.signal(sig, lambda *_: request_stop(stop)) for sig in STOP_SIGNALS}
     try:
-        spin(node)
+        spin(node, stop)
     finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
         node.destroy_node()
         rclpy.try_shutdown()
     return 0
 
 
-def spin(node: Node) -> None:
-    """Spin until Ctrl-C or shutdown, surviving whatever a callback or the executor raises.
+def request_stop(stop: threading.Event) -> None:
+    """The first Ctrl-C or SIGTERM ends the spin at the next wake-up; a second Ctrl-C,
+    for a node that does not stop, interrupts it the usual way."""
+    stop.set()
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+def spin(node: Node, stop: threading.Event | None = None) -> None:
+    """Spin until ``stop`` is set or the context shuts down, surviving whatever a callback
+    or the executor raises.
 
     An error mid-run (a bug in a callback, or rclpy's own "Unable to convert call argument
-    '0' to Python object" from take_message under load) is logged with its traceback and
-    the node spins on: its timers keep the drives under control. The same error while the
-    context shuts down (where rclpy raises it under load, ros/joint_state_publisher#117)
-    ends the spin quietly.
+    '0' to Python object" from take_message) is logged with its traceback and the node
+    spins on: its timers keep the drives under control. The same error while the context
+    shuts down (ros/joint_state_publisher#117) ends the spin quietly.
 
     Not rclpy's EventsExecutor, although it takes messages several times cheaper (the
     recorder in runner.py uses it): in rclpy 7.1.5 a message that arrives between a
@@ -88,13 +106,18 @@ def spin(node: Node) -> None:
     delivered (measured: 2 of 19 goals sent to a freshly started planner were lost; 0 of
     15 when sent after its first heartbeat).
     """
-    while True:
-        try:
-            rclpy.spin(node)
-            return
-        except (KeyboardInterrupt, ExternalShutdownException):
-            return
-        except Exception:  # noqa: BLE001 - survive anything, see above
-            if not node.context.ok():
+    stop = stop or threading.Event()
+    executor = SingleThreadedExecutor(context=node.context)
+    executor.add_node(node)
+    try:
+        while node.context.ok() and not stop.is_set():
+            try:
+                executor.spin_once(timeout_sec=STOP_POLL_S)
+            except (KeyboardInterrupt, ExternalShutdownException):
                 return
-            node.get_logger().error(f"kept running after an error in a callback:\n{traceback.format_exc()}")
+            except Exception:  # noqa: BLE001 - survive anything, see above
+                if not node.context.ok():
+                    return
+                node.get_logger().error(f"kept running after an error in a callback:\n{traceback.format_exc()}")
+    finally:
+        executor.shutdown(timeout_sec=0)

@@ -2,12 +2,15 @@
 #   make demo   create .venv if missing, install, run the main job end to end (no root needed)
 #   make test   same set-up plus a headless browser (apt, once), then the whole test suite
 # DDS stays on this host; each run picks a domain of its own unless ROS_DOMAIN_ID is set.
+# A user's own ROS_AUTOMATIC_DISCOVERY_RANGE, ROS_DISCOVERY_SERVER or ROS_DOMAIN_ID is kept.
 VENV    ?= .venv
 PYTHON  ?= python3
 PY      := $(VENV)/bin/python
 STAMP   := $(VENV)/.installed
 DEMO_JOB ?= config/jobs/drill_row.yaml
-export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+ifeq ($(strip $(ROS_DISCOVERY_SERVER)),)
+export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
+endif
 
 .PHONY: setup browser demo cell-demo test bench bench-peer soak stress clean
 

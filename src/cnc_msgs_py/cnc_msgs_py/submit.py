@@ -14,6 +14,7 @@ from typing import Any, Callable
 
 from . import topics
 from .client import CncClient, CncClientError
+from .discovery import dds_environment
 from .job import load_job
 from .schema import JobError
 from .tool import tool_parser
@@ -39,7 +40,9 @@ def main(argv: list[str] | None = None) -> int:
         doc = load_job(Path(args.job))
     except JobError as err:
         return _fail(f"{args.job}: {err}" if err.field else str(err))
-    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    # The user's DDS settings as they are (a discovery server on a shop floor); without
+    # any, the nodes of this host only.
+    os.environ.update(dds_environment(os.environ))
 
     import rclpy
     from rclpy.executors import ExternalShutdownException

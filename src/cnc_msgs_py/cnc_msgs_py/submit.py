@@ -56,6 +56,7 @@ def main(argv: list[str] | None = None) -> int:
     job_id = doc["job_id"]
     shown = _progress_printer()
     client.on_progress(shown)
+    client.on_reachability(_reachability_printer(client.namespace or "/"))
     try:
         client.submit(doc)
         print(f"cnc-submit: sent {job_id} to {client.goal_topic}", file=sys.stderr, flush=True)
@@ -95,6 +96,24 @@ def _progress_printer() -> Callable[[dict], None]:
             if status["state"] != "running":
                 print(f"  {status['job_id']}: {status['state']}", file=sys.stderr, flush=True)
         return show
+
+
+def _reachability_printer(namespace: str) -> Callable[[bool], None]:
+    """Say on stderr when the planner is lost (its host cut off: the job runs on there) and
+    found again; being found the first time is no news."""
+    from .qos import PLANNER_LEASE_S
+
+    lost = False
+
+    def show(reachable: bool) -> None:
+        nonlocal lost
+        if not reachable:
+            lost = True
+            print(f"cnc-submit: the planner at {namespace} is unreachable (not heard for {PLANNER_LEASE_S:g} s); "
+                  f"a running job runs on there, waiting for word", file=sys.stderr, flush=True)
+        elif lost:
+            print(f"cnc-submit: the planner at {namespace} is reachable again", file=sys.stderr, flush=True)
+    return show
 
 
 def _shutdown(node: Any) -> None:

@@ -165,6 +165,15 @@ class CncClient:
         ``qos.PLANNER_LEASE_S``) or found again (True)."""
         self._reachability_callbacks.append(callback)
 
+    def planner_listening(self) -> bool:
+        """Whether the graph shows a planner here: a node that listens on job_goal (matched
+        with our publisher) and publishes job_status. Does not spin."""
+        if self._goal_pub.get_subscription_count() == 0:
+            return False
+        publishers = {(i.node_namespace, i.node_name) for i in self.node.get_publishers_info_by_topic(self.status_topic)}
+        return any((i.node_namespace, i.node_name) in publishers
+                   for i in self.node.get_subscriptions_info_by_topic(self.goal_topic))
+
     def wait_for_planner(self, timeout: float = CONNECT_TIMEOUT_S) -> None:
         """Spin until a planner listens on job_goal and publishes job_status.
 
@@ -175,7 +184,7 @@ class CncClient:
             CncClientError: none did within ``timeout`` seconds.
         """
         deadline = time.monotonic() + timeout
-        while not self._planner_listening():
+        while not self.planner_listening():
             if time.monotonic() > deadline:
                 raise CncClientError(f"no planner listens on {self.goal_topic} (waited {timeout:g} s); "
                                      f"start one, or check --namespace and ROS_DOMAIN_ID")
@@ -233,13 +242,6 @@ class CncClient:
                 raise CncClientError(f"no answer on {name} within {timeout:g} s")
             self._spin_once(0.05)
         return future.result()
-
-    def _planner_listening(self) -> bool:
-        if self._goal_pub.get_subscription_count() == 0:
-            return False
-        publishers = {(i.node_namespace, i.node_name) for i in self.node.get_publishers_info_by_topic(self.status_topic)}
-        return any((i.node_namespace, i.node_name) in publishers
-                   for i in self.node.get_subscriptions_info_by_topic(self.goal_topic))
 
     def _on_liveliness(self, info: Any) -> None:
         # Counted from the changes, not the status's alive_count: when the first "alive" came

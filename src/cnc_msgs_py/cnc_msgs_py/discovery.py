@@ -207,7 +207,10 @@ def _shared_library(name: str) -> bool:
 
 
 def server_command(program: ServerProgram, server_id: int, address: str | None, port: int) -> list[str]:
-    """The discovery server's command line: id, UDP address (all interfaces if None) and port."""
+    """The discovery server's command line: id, UDP address (all interfaces if None) and port.
+
+    Not Fast DDS's BACKUP mode (``--backup``): in the 2.14.5 wheel it crashed restoring its
+    state after a SIGKILL (docs/shop-floor.md, known limits)."""
     if not 0 <= server_id <= MAX_SERVER_ID:
         raise ValueError(f"--id must be 0..{MAX_SERVER_ID}, got {server_id}")
     if not 0 < port < 65536:

@@ -112,6 +112,13 @@ def test_client_submits_follows_waits_and_cancels_in_process(tmp_path):
             # The planner's own rejection comes back as a final status (duplicate job_id).
             job_id = client.submit(move_job("cli-1", 5.0))
             assert client.wait(job_id, timeout=30)["state"] == "rejected"
+            # The client may hear the rejection before the recorder (on the same executor)
+            # has taken the goal: record until the recorder has the rejection too, which the
+            # planner sent after the goal reached it.
+            deadline = time.monotonic() + 30
+            while not any(s["job_id"] == "cli-1" and s["state"] == "rejected" for s in session.recorder.statuses):
+                assert time.monotonic() < deadline, "the recorder never heard the rejection"
+                executor.spin_once(timeout_sec=0.05)
         finally:
             executor.remove_node(session.recorder)
             executor.remove_node(node)

@@ -90,6 +90,7 @@ class CncClient:
             event_callbacks=SubscriptionEventCallbacks(liveliness=self._on_liveliness))
         self._statuses: dict[str, dict] = {}  # latest status per job submitted here
         self._submitted: set[str] = set()
+        self._others: dict[str, dict] = {}  # latest status of the other jobs heard (for follow)
         self._callbacks: list[Callable[[dict], None]] = []
         self._reachable: bool | None = None  # None until DDS has said anything
         self._alive = 0  # planners (job_status writers) DDS holds alive
@@ -153,6 +154,11 @@ class CncClient:
         a restart): its statuses, including those the planner kept, count as for one
         submitted here (``status``, ``wait``, ``on_progress``)."""
         self._submitted.add(job_id)
+        heard = self._others.pop(job_id, None)  # a status that came before (a latched one)
+        if heard is not None and not self._final(job_id):
+            self._statuses[job_id] = heard
+            for callback in self._callbacks:
+                callback(dict(heard))
 
     @property
     def reachable(self) -> bool | None:
@@ -272,8 +278,10 @@ class CncClient:
             self.node.get_logger().warning(f"ignoring a malformed status on {self.status_topic}: {msg.data[:80]}")
             return
         job_id = doc["job_id"]
-        if job_id not in self._submitted:
-            return  # another controller's job, or a latched status from before
+        if job_id not in self._submitted:  # another controller's job, or a latched status from before
+            if self._others.get(job_id, {}).get("state") not in FINAL_STATES:
+                self._others[job_id] = dict(doc)
+            return
         if self._final(job_id):
             return  # a job is final once; later copies (re-delivered latched ones) change nothing
         self._statuses[job_id] = dict(doc)

@@ -2,14 +2,17 @@
 #   make demo   create .venv if missing, install, run the main job end to end (no root needed)
 #   make test   same set-up plus a headless browser (apt, once), then the whole test suite
 # DDS stays on this host; each run picks a domain of its own unless ROS_DOMAIN_ID is set.
+# A user's own ROS_AUTOMATIC_DISCOVERY_RANGE, ROS_DISCOVERY_SERVER or ROS_DOMAIN_ID is kept.
 VENV    ?= .venv
 PYTHON  ?= python3
 PY      := $(VENV)/bin/python
 STAMP   := $(VENV)/.installed
 DEMO_JOB ?= config/jobs/drill_row.yaml
-export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+ifeq ($(strip $(ROS_DISCOVERY_SERVER)),)
+export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
+endif
 
-.PHONY: setup browser demo cell-demo test bench bench-peer soak stress clean
+.PHONY: setup browser demo cell-demo test bench bench-peer bench-shop soak stress clean
 
 # The virtual environment with everything from PyPI: all that the demos and benchmarks need.
 setup: $(STAMP)
@@ -46,6 +49,11 @@ bench: setup
 # runs it as an unprivileged user): not part of `make test`; about 6 minutes.
 bench-peer: setup
 	$(PY) bench/peer/run.py
+
+# 12 simulated mills over 4 hosts in network namespaces (needs root), with Fast DDS's
+# discovery server and with simple discovery: not part of `make bench`; about 8 minutes.
+bench-shop: setup
+	$(PY) bench/shop_floor.py
 
 # A 10,000-hole plate and a 1-hour raster streamed over topics and checked from their
 # recordings: not part of `make bench`; about 7 minutes on 2 idle CPUs (more under load).

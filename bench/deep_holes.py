@@ -117,7 +117,7 @@ def linuxcnc_g83() -> list[str]:
     cycle, revs, violations = float(rows[0][-3]), float(rows[0][-2]), int(rows[0][-1])
     return [f"{f'LinuxCNC G83 3 mm, {PECK_RPM:.0f} rpm (peer.txt)':44s} {'-':>7s} {cycle:8.2f} {revs:10.2f} "
             f"{revs * FEED_PER_REV_MM:8.2f}",
-            f"  (from bench/results/peer.txt, make bench-peer: LinuxCNC 2.9's G83 recorded, through the same drive"
+            "  (from bench/results/peer.txt, make bench-peer: LinuxCNC 2.9's G83 recorded, through the same drive"
             f" model;", f"  no jerk limit; {violations} ms with the tip below R while X/Y was off the hole)"]
 
 

@@ -4,6 +4,11 @@ Every test gets ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and a ROS_DOMAIN_ID of i
 so tests (and parallel CI runs on one machine) never hear each other. Several suites run at
 once on one host (engineers working side by side) each take a range of their own with
 CNC_TEST_DOMAINS=LOW-HIGH (inclusive, within 1..232).
+
+A user's own DDS settings are kept (cnc_msgs_py.discovery.dds_environment): a
+ROS_DOMAIN_ID pins every test to that domain (unless CNC_TEST_DOMAINS is given), and with
+ROS_AUTOMATIC_DISCOVERY_RANGE or ROS_DISCOVERY_SERVER set the range is theirs. The shop-floor
+tests (test_shop_floor.py) make networks of their own in namespaces instead.
 """
 from __future__ import annotations
 
@@ -12,10 +17,14 @@ import os
 
 import pytest
 
+from cnc_msgs_py.discovery import dds_environment
+
 
 def _domain_range() -> range:
-    """The domains this run may use: CNC_TEST_DOMAINS=LOW-HIGH, or 1..100."""
-    low, _, high = os.environ.get("CNC_TEST_DOMAINS", "1-100").partition("-")
+    """The domains this run may use: CNC_TEST_DOMAINS=LOW-HIGH, the user's ROS_DOMAIN_ID, or 1..100."""
+    chosen = os.environ.get("CNC_TEST_DOMAINS") or (f"{os.environ['ROS_DOMAIN_ID']}-{os.environ['ROS_DOMAIN_ID']}"
+                                                    if os.environ.get("ROS_DOMAIN_ID") else "1-100")
+    low, _, high = chosen.partition("-")
     return range(int(low), int(high) + 1)
 
 
@@ -25,8 +34,11 @@ _domains = itertools.count(os.getpid() * 7)
 
 @pytest.fixture(autouse=True)
 def local_dds(monkeypatch):
-    """A private DDS domain on localhost for each test."""
+    """A private DDS domain on localhost for each test (unless the user chose otherwise)."""
     domain = _range[next(_domains) % len(_range)]
-    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
+    environ = {k: v for k, v in os.environ.items() if k != "ROS_DOMAIN_ID"}
+    for key in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_DOMAIN_ID"):
+        value = dds_environment(environ, domain).get(key)
+        if value is not None:
+            monkeypatch.setenv(key, value)
     return domain

@@ -15,6 +15,7 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 
 from cnc_msgs_py.client import CncClient
+from cnc_msgs_py.qos import PLANNER_LEASE_S
 from cnc_msgs_py.job import load_job
 from cnc_msgs_py.schema import JobError
 from cnc_planner.runner import Session
@@ -122,12 +123,53 @@ def test_client_submits_follows_waits_and_cancels_in_process(tmp_path):
             # The planner's own rejection comes back as a final status (duplicate job_id).
             job_id = client.submit(move_job("cli-1", 5.0))
             assert client.wait(job_id, timeout=30)["state"] == "rejected"
+            # The client may hear the rejection before the recorder (on the same executor)
+            # has taken the goal: record until the recorder has the rejection too, which the
+            # planner sent after the goal reached it.
+            deadline = time.monotonic() + 30
+            while not any(s["job_id"] == "cli-1" and s["state"] == "rejected" for s in session.recorder.statuses):
+                assert time.monotonic() < deadline, "the recorder never heard the rejection"
+                executor.spin_once(timeout_sec=0.05)
         finally:
             executor.remove_node(session.recorder)
             executor.remove_node(node)
             node.destroy_node()
     goals = [json.loads(g)["job_id"] for g in read_run(tmp_path / "bag").goals]
     assert goals == ["cli-1", "cli-2", "cli-1"]  # never bad-1
+
+
+def test_client_follows_another_controllers_job_and_says_when_the_planner_is_lost(tmp_path):
+    """DDS liveliness of job_status: a planner that dies (SIGKILL, as a host that goes
+    away) is reported unreachable within its lease and reachable once it is back."""
+    with Session("mill3", tmp_path / "bag") as session:
+        node = rclpy.create_node("cell_controller")
+        executor = SingleThreadedExecutor()  # the client's own; the session spins the recorder
+        executor.add_node(node)
+
+        def spin_until(done, timeout: float) -> None:
+            deadline = time.monotonic() + timeout
+            while not done() and time.monotonic() < deadline:
+                executor.spin_once(timeout_sec=0.05)
+            assert done()
+        try:
+            client = CncClient(node, namespace="/cnc", executor=executor)
+            changes: list[tuple[bool, float]] = []
+            client.on_reachability(lambda up: changes.append((up, time.monotonic())))
+            session.submit(json.dumps(move_job("other-1", 10.0)))  # sent by the session, not the client
+            client.follow("other-1")
+            assert client.wait("other-1", timeout=30)["state"] == "succeeded"
+            spin_until(lambda: client.reachable is True, 10)
+
+            killed = time.monotonic()
+            session.kill("planner")
+            spin_until(lambda: client.reachable is False, 10)
+            assert changes[-1][1] - killed <= PLANNER_LEASE_S + 1.0
+            session.restart("planner")
+            spin_until(lambda: client.reachable is True, 30)
+            assert [up for up, _ in changes] == [True, False, True]
+        finally:
+            executor.remove_node(node)
+            node.destroy_node()
 
 
 def test_cnc_submit_refuses_a_bad_job_in_one_line_before_any_ros(tmp_path):

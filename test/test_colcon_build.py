@@ -18,6 +18,7 @@ from pathlib import Path
 
 import pytest
 
+from cnc_msgs_py.discovery import DDS_VARIABLES
 from support import ROOT
 
 INSTALLED = {"cnc_planner": "planner", "cnc_servo_bridge": "bridge"}
@@ -44,7 +45,7 @@ def sourced(install: Path, command: str) -> list[str]:
 def clean_env() -> dict[str, str]:
     """What a user's fresh shell holds, plus this test's DDS settings (localhost, own domain)."""
     return {"PATH": "/usr/bin:/bin", "HOME": os.environ["HOME"],
-            "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "ROS_DOMAIN_ID": os.environ["ROS_DOMAIN_ID"]}
+            **{k: v for k, v in os.environ.items() if k in DDS_VARIABLES}}
 
 
 def test_colcon_build_installs_both_executables(install):

@@ -15,6 +15,7 @@ import os
 import numpy as np
 import pytest
 
+from cnc_msgs_py.discovery import dds_environment
 from support import JOBS, cnc, load_report
 from thread_reader import judge, read_thread
 
@@ -30,8 +31,8 @@ def thread_run(tmp_path_factory):
     # module scope (one run for both tests): conftest's per-test DDS fixture does not reach
     # here, so keep the child on localhost and on a domain of its own the same way
     with pytest.MonkeyPatch.context() as env:
-        env.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-        env.setenv("ROS_DOMAIN_ID", str(70 + os.getpid() % 25))
+        for key, value in dds_environment(os.environ, 70 + os.getpid() % 25).items():
+            env.setenv(key, value)
         result = cnc("cnc-run", JOBS / "thread_m12.yaml", "--out", out)
     assert result.returncode == 0, result.stderr[-3000:]
     return read_thread(out / "bag"), load_report(out)["thread"]

@@ -30,5 +30,8 @@ setup(
     description="CNC job, status and cancel schemas, topic names, QoS profiles and machine descriptions shared by the planner, the bridge and cell controllers.",
     license="Apache-2.0",
     tests_require=["pytest"],
-    entry_points={"console_scripts": ["cnc-submit = cnc_msgs_py.submit:main"]},
+    entry_points={"console_scripts": [
+        "cnc-submit = cnc_msgs_py.submit:main",
+        "cnc-discovery-server = cnc_msgs_py.discovery_server:main",
+    ]},
 )

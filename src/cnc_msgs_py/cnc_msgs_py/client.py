@@ -26,6 +26,16 @@ job raises ``JobError`` naming the field and nothing reaches ``job_goal``. Statu
 ``cnc_status/1`` documents (as dicts); ``wait`` and ``submit`` spin the node (or the
 executor given), everything else only reads what the node's callbacks have received.
 
+On a shop floor the planner runs on the machine's controller and the client on the cell
+controller, found through a discovery server (``ROS_DISCOVERY_SERVER``, docs/shop-floor.md).
+DDS tells the client when the planner is no longer heard (liveliness of its job_status, lease
+``qos.PLANNER_LEASE_S``) and when it is back; ``reachable`` and ``on_reachability`` say so.
+A job keeps running on a machine cut off from the cell (planner and bridge share its host),
+and its statuses, kept by the planner, arrive once the machine is reachable again::
+
+    client.on_reachability(lambda up: print("m1", "reachable" if up else "unreachable"))
+    client.follow("drill-001")  # a job sent by another controller (or before a restart)
+
 ``cnc-submit JOB`` wraps the client for the shell, against nodes already running (``ros2
 run`` from a colcon install, or the ``cnc-planner``/``cnc-bridge`` console scripts).
 
@@ -61,6 +71,7 @@ class CncClient:
     """
 
     def __init__(self, node: Any, namespace: str = topics.NAMESPACE, executor: Any = None) -> None:
+        from rclpy.event_handler import SubscriptionEventCallbacks
         from std_msgs.msg import String
 
         from . import qos
@@ -74,10 +85,16 @@ class CncClient:
         self._string = String
         self._goal_pub = node.create_publisher(String, self.goal_topic, qos.JOB_GOAL)
         self._cancel_pub = node.create_publisher(String, self.cancel_topic, qos.JOB_CANCEL)
-        self._status_sub = node.create_subscription(String, self.status_topic, self._on_status, qos.JOB_STATUS)
+        self._status_sub = node.create_subscription(
+            String, self.status_topic, self._on_status, qos.JOB_STATUS,
+            event_callbacks=SubscriptionEventCallbacks(liveliness=self._on_liveliness))
         self._statuses: dict[str, dict] = {}  # latest status per job submitted here
         self._submitted: set[str] = set()
+        self._others: dict[str, dict] = {}  # latest status of the other jobs heard (for follow)
         self._callbacks: list[Callable[[dict], None]] = []
+        self._reachable: bool | None = None  # None until DDS has said anything
+        self._alive = 0  # planners (job_status writers) DDS holds alive
+        self._reachability_callbacks: list[Callable[[bool], None]] = []
         self._bridge_services: dict[str, Any] = {}  # lifecycle service clients, made when first used
 
     # -- the task API -------------------------------------------------------------------
@@ -111,7 +128,8 @@ class CncClient:
             if left is not None and left <= 0:
                 last = self._statuses.get(job_id)
                 seen = f" (last seen: {last['state']}, {100 * last.get('progress', 0):.0f}%)" if last else ""
-                raise TimeoutError(f"job '{job_id}' did not end within {timeout:g} s{seen}")
+                lost = ", the planner unreachable" if self._reachable is False else ""
+                raise TimeoutError(f"job '{job_id}' did not end within {timeout:g} s{seen}{lost}")
             self._spin_once(0.1 if left is None else min(0.1, left))
         return dict(self._statuses[job_id])
 
@@ -131,6 +149,37 @@ class CncClient:
         """Call ``callback(status)`` with every status of the jobs submitted here."""
         self._callbacks.append(callback)
 
+    def follow(self, job_id: str) -> None:
+        """Follow a job this client did not submit (another controller's, or one sent before
+        a restart): its statuses, including those the planner kept, count as for one
+        submitted here (``status``, ``wait``, ``on_progress``)."""
+        self._submitted.add(job_id)
+        heard = self._others.pop(job_id, None)  # a status that came before (a latched one)
+        if heard is not None and not self._final(job_id):
+            self._statuses[job_id] = heard
+            for callback in self._callbacks:
+                callback(dict(heard))
+
+    @property
+    def reachable(self) -> bool | None:
+        """Whether the planner is heard (DDS liveliness of its job_status, renewed within
+        ``qos.PLANNER_LEASE_S``); None until DDS has said either. Does not spin."""
+        return self._reachable
+
+    def on_reachability(self, callback: Callable[[bool], None]) -> None:
+        """Call ``callback(reachable)`` whenever the planner is lost (False: not heard for
+        ``qos.PLANNER_LEASE_S``) or found again (True)."""
+        self._reachability_callbacks.append(callback)
+
+    def planner_listening(self) -> bool:
+        """Whether the graph shows a planner here: a node that listens on job_goal (matched
+        with our publisher) and publishes job_status. Does not spin."""
+        if self._goal_pub.get_subscription_count() == 0:
+            return False
+        publishers = {(i.node_namespace, i.node_name) for i in self.node.get_publishers_info_by_topic(self.status_topic)}
+        return any((i.node_namespace, i.node_name) in publishers
+                   for i in self.node.get_subscriptions_info_by_topic(self.goal_topic))
+
     def wait_for_planner(self, timeout: float = CONNECT_TIMEOUT_S) -> None:
         """Spin until a planner listens on job_goal and publishes job_status.
 
@@ -141,7 +190,7 @@ class CncClient:
             CncClientError: none did within ``timeout`` seconds.
         """
         deadline = time.monotonic() + timeout
-        while not self._planner_listening():
+        while not self.planner_listening():
             if time.monotonic() > deadline:
                 raise CncClientError(f"no planner listens on {self.goal_topic} (waited {timeout:g} s); "
                                      f"start one, or check --namespace and ROS_DOMAIN_ID")
@@ -200,26 +249,39 @@ class CncClient:
             self._spin_once(0.05)
         return future.result()
 
-    def _planner_listening(self) -> bool:
-        if self._goal_pub.get_subscription_count() == 0:
-            return False
-        publishers = {(i.node_namespace, i.node_name) for i in self.node.get_publishers_info_by_topic(self.status_topic)}
-        return any((i.node_namespace, i.node_name) in publishers
-                   for i in self.node.get_subscriptions_info_by_topic(self.goal_topic))
+    def _on_liveliness(self, info: Any) -> None:
+        # Counted from the changes, not the status's alive_count: when the first "alive" came
+        # before rclpy armed the event (see _on_status), the count DDS reports later is one
+        # short (measured: -1 on the loss of the only planner).
+        self._alive = max(0, self._alive + info.alive_count_change)
+        self._set_reachable(self._alive > 0)
+
+    def _set_reachable(self, reachable: bool) -> None:
+        if reachable != self._reachable:
+            self._reachable = reachable
+            for callback in self._reachability_callbacks:
+                callback(reachable)
 
     def _final(self, job_id: str) -> bool:
         latest = self._statuses.get(job_id)
         return latest is not None and latest["state"] in FINAL_STATES
 
     def _on_status(self, msg: Any) -> None:
+        # A status is word from the planner: reachable, even if DDS's first liveliness event
+        # was missed (rclpy arms the event after the subscription exists, and a planner
+        # matched in between is alive before anyone listens for it).
+        self._alive = max(self._alive, 1)
+        self._set_reachable(True)
         try:
             doc = dataclasses.asdict(Status.decode(msg.data))
         except (ValueError, TypeError):
             self.node.get_logger().warning(f"ignoring a malformed status on {self.status_topic}: {msg.data[:80]}")
             return
         job_id = doc["job_id"]
-        if job_id not in self._submitted:
-            return  # another controller's job, or a latched status from before
+        if job_id not in self._submitted:  # another controller's job, or a latched status from before
+            if self._others.get(job_id, {}).get("state") not in FINAL_STATES:
+                self._others[job_id] = dict(doc)
+            return
         if self._final(job_id):
             return  # a job is final once; later copies (re-delivered latched ones) change nothing
         self._statuses[job_id] = dict(doc)

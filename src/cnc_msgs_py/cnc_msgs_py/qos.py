@@ -1,15 +1,19 @@
 """QoS profiles of the CNC topics (needs rclpy; the rest of the package does not)."""
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.duration import Duration
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy
 
 from . import topics
 
 
-def _reliable(depth: int, latched: bool = False) -> QoSProfile:
+def _reliable(depth: int, latched: bool = False, lease_s: float | None = None) -> QoSProfile:
+    liveliness = {} if lease_s is None else {"liveliness": LivelinessPolicy.AUTOMATIC,
+                                             "liveliness_lease_duration": Duration(seconds=lease_s)}
     return QoSProfile(
         history=HistoryPolicy.KEEP_LAST,
         depth=depth,
         reliability=ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
+        **liveliness,
     )
 
 
@@ -18,7 +22,12 @@ def _reliable(depth: int, latched: bool = False) -> QoSProfile:
 # one burst lost two of them at depth 10). 100 in flight is far beyond a real cell's queue.
 JOB_GOAL = _reliable(100)
 JOB_CANCEL = _reliable(100)
-JOB_STATUS = _reliable(100, latched=True)
+# The planner's statuses also carry its liveliness (DDS's own, asserted by the planner's
+# participant): a cell controller on another host is told by DDS when no word came from the
+# planner for PLANNER_LEASE_S (its host down, a cable pulled) and again when it is back.
+# A reader must request a lease too to be told; one that requests none still matches.
+PLANNER_LEASE_S = 2.0
+JOB_STATUS = _reliable(100, latched=True, lease_s=PLANNER_LEASE_S)
 JOB_EVENTS = _reliable(100)
 JOINT_TRAJECTORY = _reliable(topics.TRAJECTORY_DEPTH)
 # Feedback: a deep history so that a recorder falling behind during fast simulation

@@ -13,6 +13,7 @@ from typing import Any, Callable
 
 from . import topics
 from .client import CncClient, CncClientError
+from .discovery import dds_environment
 from .gcode.document import job_document
 from .job import load_job
 from .progress import Progress
@@ -41,7 +42,9 @@ def main(argv: list[str] | None = None) -> int:
         doc = load_job(job_document(args.job, args.machine))
     except JobError as err:
         return _fail(f"{args.job}: {err}" if err.field else str(err))
-    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    # The user's DDS settings as they are (a discovery server on a shop floor); without
+    # any, the nodes of this host only.
+    os.environ.update(dds_environment(os.environ))
 
     import rclpy
     from rclpy.executors import ExternalShutdownException
@@ -55,6 +58,7 @@ def main(argv: list[str] | None = None) -> int:
     job_id = doc["job_id"]
     shown = Progress(sys.stderr)
     client.on_progress(shown)
+    client.on_reachability(_reachability_printer(client.namespace or "/"))
     try:
         client.submit(doc)
         print(f"cnc-submit: sent {job_id} to {client.goal_topic}", file=sys.stderr, flush=True)
@@ -81,6 +85,24 @@ def main(argv: list[str] | None = None) -> int:
     if final["state"] == "succeeded" or (final["state"] == "canceled" and args.cancel_after is not None):
         return 0
     return 1
+
+
+def _reachability_printer(namespace: str) -> Callable[[bool], None]:
+    """Say on stderr when the planner is lost (its host cut off: the job runs on there) and
+    found again; being found the first time is no news."""
+    from .qos import PLANNER_LEASE_S
+
+    lost = False
+
+    def show(reachable: bool) -> None:
+        nonlocal lost
+        if not reachable:
+            lost = True
+            print(f"cnc-submit: the planner at {namespace} is unreachable (not heard for {PLANNER_LEASE_S:g} s); "
+                  f"a running job runs on there, waiting for word", file=sys.stderr, flush=True)
+        elif lost:
+            print(f"cnc-submit: the planner at {namespace} is reachable again", file=sys.stderr, flush=True)
+    return show
 
 
 def _shutdown(node: Any) -> None:

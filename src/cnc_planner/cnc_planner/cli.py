@@ -124,6 +124,7 @@ def cell_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--timeout", type=float, default=900.0, help="wall-clock limit per machine (s)")
     args = parser.parse_args(argv)
+    from cnc_msgs_py.discovery import describe_discovery
     from cnc_planner.runner import local_dds_env
 
     env = local_dds_env()  # one domain for the whole cell: namespaces keep the machines apart
@@ -135,7 +136,7 @@ def cell_main(argv: list[str] | None = None) -> int:
         log = (args.out / f"m{i}.log")
         log.parent.mkdir(parents=True, exist_ok=True)
         runs.append((job, out, subprocess.Popen(command, env=env, stdout=log.open("w"), stderr=subprocess.STDOUT)))
-    print(f"cnc-cell: {len(runs)} machines in ROS_DOMAIN_ID {env['ROS_DOMAIN_ID']}, logs in {args.out}/m<i>.log")
+    print(f"cnc-cell: {len(runs)} machines; {describe_discovery(env)}; logs in {args.out}/m<i>.log")
     worst = 0
     for job, out, proc in runs:
         code = proc.wait()

@@ -26,6 +26,7 @@ from builtin_interfaces.msg import Time
 from std_msgs.msg import String
 
 from cnc_msgs_py import qos, topics
+from cnc_msgs_py.discovery import DDS_VARIABLES, dds_environment
 from cnc_msgs_py.status import FINAL_STATES
 from cnc_msgs_py.units import NS
 from cnc_analysis.recording import RECORDED, BagWriter
@@ -44,13 +45,12 @@ class RunError(RuntimeError):
 
 
 def local_dds_env(domain_id: int | None = None) -> dict[str, str]:
-    """Environment for ROS processes: discovery on localhost only, a domain of our own."""
-    env = dict(os.environ)
-    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    """Environment for ROS processes: what the user chose for DDS (ROS_DOMAIN_ID,
+    ROS_AUTOMATIC_DISCOVERY_RANGE, ROS_DISCOVERY_SERVER) is kept; otherwise discovery stays
+    on localhost, in ``domain_id`` or a domain of our own."""
     if domain_id is None:
-        domain_id = int(env.get("ROS_DOMAIN_ID") or 0) or (os.getpid() % 100) + 1
-    env["ROS_DOMAIN_ID"] = str(domain_id)
-    return env
+        domain_id = (os.getpid() % 100) + 1
+    return dds_environment(os.environ, domain_id)
 
 
 def topic_name(topic: str, namespace: str) -> str:
@@ -158,7 +158,7 @@ class Session:
                  env: dict[str, str] | None = None, progress: Callable[[dict], None] | None = None,
                  bridge_params: dict[str, object] | None = None, simulation: bool = True) -> None:
         self.env = env or local_dds_env()
-        os.environ.update({k: self.env[k] for k in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_DOMAIN_ID")})
+        os.environ.update({k: self.env[k] for k in DDS_VARIABLES if k in self.env})  # the recorder's
         self.progress = progress
         self.commands = {
             "bridge": node_command("cnc_servo_bridge.bridge_node", namespace,

@@ -15,7 +15,8 @@ motor-pos-fb through a signal named ``J<n>:pos-fb`` (an ideal servo, as in Linux
 sim configs); a lathe gets ``sim_spindle`` for spindle-synchronised motion (G33/G76).
 A ``sampler`` records, every servo period, the joint feedback (in um, through ``scale``
 components, since halsampler prints six decimals), the spindle revolutions,
-motion.motion-type and the row marker motion.analog-out-00 (set with M68 E0 Q<row>).
+motion.motion-type, the row marker motion.analog-out-00 (set with M68 E0 Q<row>) and the
+program line of the motion under way, motion.program-line.
 """
 from __future__ import annotations
 
@@ -47,6 +48,7 @@ def channels(machine: Machine) -> list[Channel]:
         out.append(Channel("spindle_revs", "f", "spindle-revs"))
     out.append(Channel("motion_type", "s", "motion.motion-type"))
     out.append(Channel("marker", "f", "motion.analog-out-00"))
+    out.append(Channel("line", "s", "motion.program-line"))  # splits a program into its operations
     return out
 
 

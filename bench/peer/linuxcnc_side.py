@@ -63,7 +63,7 @@ class Program:
 @dataclass
 class Recording:
     """Samples of one row, SI: t (s, from the row's first sample), axis positions (m),
-    spindle angle (rad) on lathes, motion.motion-type per sample."""
+    spindle angle (rad) on lathes, motion.motion-type and motion.program-line per sample."""
 
     name: str
     t: np.ndarray
@@ -72,6 +72,7 @@ class Recording:
     motion_type: np.ndarray
     errors: list[str] = field(default_factory=list)
     finished: bool = False
+    line: np.ndarray | None = None
 
 
 @dataclass
@@ -149,5 +150,5 @@ def parse_session(machine: Machine, status: dict, workdir: Path, wall: float) ->
         recordings[row["name"]] = Recording(
             name=row["name"], t=(idx - idx[0]) * period, axes=axes, spindle=spindle,
             motion_type=raw[sel, cols["motion_type"]].astype(int), errors=row["errors"],
-            finished=bool(row["finished"]))
+            finished=bool(row["finished"]), line=raw[sel, cols["line"]].astype(int))
     return Session(recordings, status.get("errors", []), len(n), gaps, wall, workdir)

@@ -108,7 +108,8 @@ _runs = itertools.count()
 
 def run_over_topics(doc: dict, machine: Machine, start_mm: dict[str, float], timeout: float = 600.0) -> dict:
     """The job through both nodes over topics, from start_mm: the recorded feedback as
-    t (s), {axis: m} and the spindle (rad), with the final status."""
+    t (s), {axis: m} and the spindle (rad), with the final status; a program's operation
+    starts (s, on the feedback's clock) in 'operations'."""
     job_id = f"{doc['job_id']}-{machine.name}-{next(_runs)}"
     text = json.dumps({**doc, "machine": machine.name, "job_id": job_id})
     start = [start_mm.get(j, 0.0) * 1e-3 for j in machine.joint_names]
@@ -122,6 +123,7 @@ def run_over_topics(doc: dict, machine: Machine, start_mm: dict[str, float], tim
     if status["state"] != "succeeded":
         raise RuntimeError(f"{job_id}: {status['state']}: {status.get('reason', '')}")
     columns = {j: run.feedback[:, run.column(j)] for j in run.joints}
+    operations = sorted((e["index"], e["stamp_ns"] / 1e9) for e in run.events if e.get("name") == "operation")
     return {"t": run.feedback_t, "axes": {j: columns[j] for j in machine.linear_axes},
             "spindle": columns.get(SPINDLE), "planned_s": status.get("cycle_time_s"),
-            "samples": len(run.feedback_t)}
+            "samples": len(run.feedback_t), "operations": operations}

@@ -47,7 +47,9 @@ import analysis  # noqa: E402
 import deep_holes  # noqa: E402
 import gcode  # noqa: E402
 import linuxcnc_side  # noqa: E402
+import oracle  # noqa: E402
 import ours  # noqa: E402
+import programs  # noqa: E402
 from rows import THREAD_CLEARANCE_MM, Row, all_rows  # noqa: E402
 
 RESULTS = ROOT / "bench" / "results" / "peer.txt"
@@ -71,16 +73,18 @@ def programs_for(row: Row) -> list[tuple[str, linuxcnc_side.Program]]:
     return [("G71", linuxcnc_side.Program(f"{row.name} G71", start, gcode.turn_program(row.name, row.doc)))]
 
 
-def run_linuxcnc(rows: list[Row], workroot: Path, reuse: bool, out: dict, log) -> None:
-    """Both sessions (mill3, lathe), one after the other; fills out[machine] or out['error']."""
+def run_linuxcnc(rows: list[Row], prows: list, workroot: Path, reuse: bool, out: dict, log) -> None:
+    """Both sessions (mill3, lathe), one after the other, the generated rows then the program
+    files; fills out[machine] or out['error']."""
     try:
         workroot.mkdir(parents=True, exist_ok=True)
         workroot.chmod(0o755)  # the unprivileged user must reach its work directories
         for name in ("mill3", "lathe"):
             mine = [r for r in rows if r.machine == name]
-            if not mine:
+            files = [p.linuxcnc_program() for p in prows if p.machine == name]
+            if not mine and not files:
                 continue
-            progs = [p for r in mine for _, p in programs_for(r)]
+            progs = [p for r in mine for _, p in programs_for(r)] + files
             workdir = workroot / name
             if reuse:
                 status = json.loads((workdir / "driver.json").read_text())
@@ -119,8 +123,11 @@ def judge(row: Row, t, axes, spindle, machine) -> dict:
         cycle = drill_cycle(job, machine, Kinematics(machine, job.setup, job.tool))
         a = analysis.drilling(t, axes, cycle)
         off, low = analysis.off_hole(axes, cycle)
+        depths = [h.get("depth_mm") for h in a["holes"]]
+        depth_um = (max(abs(d - row.doc["drill"]["depth"]) for d in depths) * 1e3
+                    if depths and None not in depths else None)
         return {"time": a["cycle_time_s"], "viol": a["safety_violations"], "holes": len(cycle.holes),
-                "off_um": off * 1e6, "low_mm": None if low is None else low * 1e3}
+                "off_um": off * 1e6, "low_mm": None if low is None else low * 1e3, "depth_um": depth_um}
     if row.kind == "deep":
         if spindle is None:  # LinuxCNC's mill records no spindle: it runs at speed from M3 on
             spindle = row.doc["spindle_rpm"] * 2 * np.pi / 60.0 * np.asarray(t)
@@ -381,6 +388,30 @@ def _ideal_viol(rows: list[Row], lc: dict) -> str:
     return f"{total} in all rows together"
 
 
+def program_checks(prows: list) -> list[str]:
+    """LinuxCNC's interpreter (rs274 -g) as the oracle of our front end, per cycle operation;
+    a file it refuses is compared with the file whose operations ours reads identically."""
+    lines = ["What our front end makes of each file, against LinuxCNC's own interpreter (rs274 -g, its",
+             "canonical moves; bench/peer/oracle.py): per cycle, the numbers the cycle's words give"]
+    if shutil.which("rs274") is None:
+        return lines + ["  rs274 not installed: skipped"]
+    for prow in prows:
+        lines += oracle.check_program(prow.name, prow.text, prow.operations)
+        docs = [doc for _, _, doc in prow.operations]
+        twins = [o.name for o in prows if o is not prow and [d for _, _, d in o.operations] == docs]
+        if twins:
+            lines.append(f"  {prow.name}: its operations (documents) are identical to {', '.join(twins)}'s")
+    return lines
+
+
+def program_notes() -> list[str]:
+    return ["  Operations split by line: ours by the planner's operation marks (job_events), LinuxCNC by",
+            "  motion.program-line; each judged with the operation's own document (times: first to last axis",
+            "  motion within it). LC's spindle changes speed at once (sim_spindle); ours runs it down and up",
+            "  between operations within the spindle's limits, the axes waiting. viol and depth error: on the",
+            "  recorded feedback, as the generated rows."]
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--keep", type=Path, help="keep LinuxCNC's work directories here")
@@ -393,15 +424,16 @@ def main() -> int:
         print(f"[{time.monotonic() - begin:5.0f} s] {msg}", flush=True)
 
     rows = [r for r in all_rows() if not args.only or re.search(args.only, r.name)]
+    prows = programs.program_rows(args.only)
     version = "(reused recording)"
     if not args.reuse:
         version = linuxcnc_side.ensure_installed()
         linuxcnc_side.ensure_user()
     tmp = Path(tempfile.mkdtemp(prefix="bench-peer-"))
     workroot = args.reuse or args.keep or tmp
-    variants = {name: ours.machines(name, tmp / "machines") for name in {r.machine for r in rows}}
+    variants = {name: ours.machines(name, tmp / "machines") for name in {r.machine for r in [*rows, *prows]}}
     sessions: dict = {}
-    worker = threading.Thread(target=run_linuxcnc, args=(rows, workroot, bool(args.reuse), sessions, log))
+    worker = threading.Thread(target=run_linuxcnc, args=(rows, prows, workroot, bool(args.reuse), sessions, log))
     worker.start()
     us, bounds = {}, {}
     for row in rows:
@@ -409,13 +441,22 @@ def main() -> int:
         bounds[row.name] = bound(row, variants)
         log(f"ours: {row.name}: " + ", ".join(f"{k} {v['time']:.3f} s" for k, v in us[row.name].items()
                                               if k in ("fair", "jerk")))
+    us_p = {}
+    for prow in prows:
+        us_p[prow.name] = programs.our_side(prow, variants, ours.run_over_topics, judge)
+        log(f"ours: program {prow.name}: " + ", ".join(f"{k} {v['time']:.3f} s" if "time" in v else f"{k} failed"
+                                                        for k, v in us_p[prow.name].items()))
+    checks = program_checks(prows)
     worker.join()
     lc = {row.name: linuxcnc_figures(row, sessions) for row in rows}
+    lc_p = {p.name: programs.linuxcnc_figures(p, sessions, load_machine(p.machine), judge) for p in prows}
     lines = [f"LinuxCNC {version} (linuxcnc-uspace, headless sim, servo 1 ms) vs our planner: same jobs, "
              f"same axis limits, same servo model, same analysis; {time.strftime('%Y-%m-%d')}", ""]
-    lines += table(rows, lc, us, bounds)
+    lines += table(rows, lc, us, bounds) if rows else []
     deep = deep_section(rows, lc, us)
     lines += ["", *deep] if deep else []
+    if prows:
+        lines += ["", *programs.table(prows, lc_p, us_p), *program_notes(), "", *checks]
     if sessions.get("error"):
         lines.append(f"LinuxCNC failed: {sessions['error']}")
     lines += ["", *notes(rows, lc, us, sessions)]

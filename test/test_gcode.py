@@ -219,6 +219,30 @@ def test_every_documented_program_translates_and_plans(text):
     assert plan_job(job, load_machine(machine)).duration > 0.0
 
 
+def test_linuxcnc_interpreter_reads_every_cycle_of_the_programs_as_we_do():
+    """LinuxCNC's own interpreter as the oracle: rs274 -g's canonical moves of each program of
+    config/programs/ (recorded by make bench-peer in bench/results/rs274_canonical.json, since
+    rs274 comes with linuxcnc-uspace) give, cycle by cycle, the holes, R, bottoms, retracts and
+    peck bottoms, the G76 passes (radii, pitch, start and end Z along the flank) and the G71
+    levels and contour (D from our profile, arcs swept our way) our front end reads, within the
+    resolution rs274 prints. 2.9 refuses G71's P/Q blocks: that file reads as its O-word twin."""
+    import oracle
+    import programs
+    interpret = oracle.recorded()
+    rows = programs.program_rows()
+    for row in rows:
+        lines = oracle.check_program(row.name, row.text, row.operations, interpret)
+        if row.name == "lathe_g71_g76":
+            assert lines == [f"  {row.name}: rs274 refuses it: P word with no G2 G3 G4 G10 G64 G5 G5.2 G76 G82 G86 "
+                             "G88 G89 or M50 M51 M52 M53 M62 M63 M64 M65 M66 M98 or user"]
+            twin = next(r for r in rows if r.name == "lathe_g71_sub_g76")
+            assert [{k: v for k, v in d.items() if k != "job_id"} for _, _, d in row.operations] == [
+                {k: v for k, v in d.items() if k != "job_id"} for _, _, d in twin.operations]
+            continue
+        cycles = [op for op in row.operations if op[1] != "move"]
+        assert len(lines) == len(cycles) and all(" same within " in line for line in lines), lines
+
+
 # --- over topics --------------------------------------------------------------------------------
 def test_a_mill_program_of_g81_g99_and_g83_g98_runs_as_one_goal_over_topics(tmp_path):
     """cnc-run on a .ngc file: one job, statuses counting operations, one report whose program

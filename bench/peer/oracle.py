@@ -18,21 +18,30 @@ that our reading of each cycle's words is LinuxCNC's:
   finishing offset) from our profile, arcs swept the way our parsed profile sweeps them.
 
 Lengths compared within the resolution rs274 prints (4 decimals: 0.1 um in mm, 2.5 um
-in inches). Not part of `make test`: it needs linuxcnc-uspace (apt); bench-peer runs it.
+in inches). rs274 needs linuxcnc-uspace (apt), so bench-peer runs it and keeps its outputs
+in bench/results/rs274_canonical.json (by each program's sha256); test/test_gcode.py checks
+the front end against those recorded outputs without LinuxCNC.
+
+    .venv/bin/python bench/peer/oracle.py    # rs274 on config/programs/*.ngc: check, record
 """
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 import re
 import subprocess
+import sys
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
 from cnc_msgs_py.job import parse_job
 
+RECORDED = Path(__file__).resolve().parents[1] / "results" / "rs274_canonical.json"
 CALL = re.compile(r"^\s*\d+\s+N\S*\s+([A-Z0-9_]+)\((.*)\)")
 MM_TOLERANCE = 0.0005  # mm: rounding of rs274's 4 decimals in mm (0.05 um) plus float noise
 INCH_TOLERANCE = 0.0013  # mm: half of rs274's last printed digit in inches (0.0001 in)
@@ -52,15 +61,45 @@ class Move:
     rotation: int = 0
 
 
-def canonical_moves(text: str) -> tuple[list[Move], str | None]:
-    """rs274 -g of a program: its moves in mm and the interpreter's error (None if it ran)."""
+def rs274(text: str) -> str:
+    """What ``rs274 -g`` prints for a program (stdout, then stderr), its COMMENT calls left out."""
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "program.ngc"
         path.write_text(text)
         out = subprocess.run(["rs274", "-g", str(path)], capture_output=True, text=True, timeout=60)
+    return "\n".join(line for line in (out.stdout + "\n" + out.stderr).splitlines() if " COMMENT(" not in line)
+
+
+def _key(text: str) -> str:
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def recording(interpret: Callable[[str], str], into: dict) -> Callable[[str], str]:
+    """interpret, keeping each output in ``into`` under its program's sha256."""
+    def run(text: str) -> str:
+        into[_key(text)] = out = interpret(text)
+        return out
+    return run
+
+
+def recorded(path: Path = RECORDED) -> Callable[[str], str]:
+    """rs274's outputs as bench-peer recorded them (no LinuxCNC needed), by program."""
+    outputs = json.loads(path.read_text())
+
+    def run(text: str) -> str:
+        try:
+            return outputs[_key(text)]
+        except KeyError:
+            raise KeyError(f"no rs274 output recorded for this program: rerun make bench-peer "
+                           f"(or .venv/bin/python bench/peer/oracle.py) to record {path.name}") from None
+    return run
+
+
+def canonical_moves(output: str) -> tuple[list[Move], str | None]:
+    """The moves (mm) of an rs274 -g output and the interpreter's error (None if it ran)."""
     scale, pos, synced, pitch = 1.0, (0.0, 0.0, 0.0), False, 0.0
     moves, error = [], None
-    for raw in (out.stdout + "\n" + out.stderr).splitlines():
+    for raw in output.splitlines():
         m = CALL.match(raw)
         if not m:
             if raw.strip() and not raw.startswith("executing") and error is None:
@@ -228,9 +267,11 @@ def _check_turn(doc: dict, moves: list[Move], tol: float) -> tuple[list[str], st
 
 
 # --- per program --------------------------------------------------------------------------------
-def check_program(name: str, text: str, operations: list[tuple[int, str, dict]]) -> list[str]:
-    """One line per cycle operation: what LinuxCNC's interpreter made of it against ours."""
-    moves, error = canonical_moves(text)
+def check_program(name: str, text: str, operations: list[tuple[int, str, dict]],
+                  interpret: Callable[[str], str] = rs274) -> list[str]:
+    """One line per cycle operation: what LinuxCNC's interpreter (``interpret``: a program's
+    text to rs274 -g's output) made of it against ours."""
+    moves, error = canonical_moves(interpret(text))
     tol = INCH_TOLERANCE if re.search(r"\bG20\b", text) else MM_TOLERANCE
     if error is not None:
         return [f"  {name}: rs274 refuses it: {error[:110]}"]
@@ -247,9 +288,25 @@ def check_program(name: str, text: str, operations: list[tuple[int, str, dict]])
             problems, used_passes, what, worst = _check_thread(doc, passes, used_passes, tol)
         elif kind == "turn":
             upto = "\n".join(text.splitlines()[:line]) + "\nM2\n"
-            problems, what, worst = _check_turn(doc, canonical_moves(upto)[0], tol)
+            problems, what, worst = _check_turn(doc, canonical_moves(interpret(upto))[0], tol)
         else:
             continue
         verdict = f"same within {worst * 1e3:.2f} um" if not problems else "DIFFERS: " + "; ".join(problems)
         lines.append(f"  {name} line {line} {kind}: {verdict} ({what})")
     return lines
+
+
+def main() -> int:
+    """Check every program of config/programs/ against rs274 and record its outputs."""
+    import programs  # bench/peer/programs.py, beside this script
+    outputs: dict[str, str] = {}
+    interpret = recording(rs274, outputs)
+    for row in programs.program_rows():
+        print("\n".join(check_program(row.name, row.text, row.operations, interpret)))
+    RECORDED.write_text(json.dumps(outputs, indent=0, sort_keys=True) + "\n")
+    print(f"recorded {len(outputs)} rs274 outputs in {RECORDED}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -327,6 +327,8 @@ def notes(rows: list[Row], lc: dict, us: dict, sessions: dict) -> list[str]:
         "viol: samples (ms) with the tip below R while X/Y is more than 10 um off the hole (analyze_drilling),",
         "  LinuxCNC G99/G98 on the drive-model feedback, ours fair/jerk on the recorded feedback; on LinuxCNC's ideal loop G99 and G98",
         "  have " + _ideal_viol(rows, lc) + ".",
+        f"Over topics, {len(ours.RERUNS)} runs were aborted by the bridge because the planner starved it (host load)"
+        + (f" and run again: {', '.join(ours.RERUNS)}." if ours.RERUNS else "."),
         "Times: first to last axis motion on the positions (analyze_drilling / cnc_analysis.summary.cycle_time).",
         "Both sides start at the same point (drilling: one pitch before the first hole, 5 mm above the surface;",
         "  thread: the drive line 1 mm above the major radius at start_z; roughing: the origin Q0) with the",
@@ -388,20 +390,28 @@ def _ideal_viol(rows: list[Row], lc: dict) -> str:
     return f"{total} in all rows together"
 
 
-def program_checks(prows: list) -> list[str]:
+def program_checks(prows: list) -> tuple[list[str], dict[str, str]]:
     """LinuxCNC's interpreter (rs274 -g) as the oracle of our front end, per cycle operation;
-    a file it refuses is compared with the file whose operations ours reads identically."""
+    a file it refuses is compared with the file whose operations ours reads identically.
+    Also rs274's outputs, by program (test_gcode checks the front end against them)."""
     lines = ["What our front end makes of each file, against LinuxCNC's own interpreter (rs274 -g, its",
              "canonical moves; bench/peer/oracle.py): per cycle, the numbers the cycle's words give"]
     if shutil.which("rs274") is None:
-        return lines + ["  rs274 not installed: skipped"]
+        return lines + ["  rs274 not installed: skipped"], {}
+    outputs: dict[str, str] = {}
     for prow in prows:
-        lines += oracle.check_program(prow.name, prow.text, prow.operations)
-        docs = [doc for _, _, doc in prow.operations]
-        twins = [o.name for o in prows if o is not prow and [d for _, _, d in o.operations] == docs]
+        lines += oracle.check_program(prow.name, prow.text, prow.operations, oracle.recording(oracle.rs274, outputs))
+        twins = [o.name for o in prows if o is not prow and _same_operations(o, prow)]
         if twins:
             lines.append(f"  {prow.name}: its operations (documents) are identical to {', '.join(twins)}'s")
-    return lines
+    return lines, outputs
+
+
+def _same_operations(a, b) -> bool:
+    """Two programs our front end reads as the same operations (job ids aside)."""
+    def docs(p):
+        return [{k: v for k, v in d.items() if k != "job_id"} for _, _, d in p.operations]
+    return docs(a) == docs(b)
 
 
 def program_notes() -> list[str]:
@@ -446,7 +456,7 @@ def main() -> int:
         us_p[prow.name] = programs.our_side(prow, variants, ours.run_over_topics, judge)
         log(f"ours: program {prow.name}: " + ", ".join(f"{k} {v['time']:.3f} s" if "time" in v else f"{k} failed"
                                                         for k, v in us_p[prow.name].items()))
-    checks = program_checks(prows)
+    checks, outputs = program_checks(prows)
     worker.join()
     lc = {row.name: linuxcnc_figures(row, sessions) for row in rows}
     lc_p = {p.name: programs.linuxcnc_figures(p, sessions, load_machine(p.machine), judge) for p in prows}
@@ -466,6 +476,9 @@ def main() -> int:
         RESULTS.parent.mkdir(parents=True, exist_ok=True)
         RESULTS.write_text(text)
         log(f"written {RESULTS.relative_to(ROOT)}")
+        if outputs:
+            oracle.RECORDED.write_text(json.dumps(outputs, indent=0, sort_keys=True) + "\n")
+            log(f"written {oracle.RECORDED.relative_to(ROOT)}")
     elif deep and all(r.kind == "deep" for r in rows) and not sessions.get("error"):
         splice_deep_section(deep)
         log(f"deep-hole section spliced into {RESULTS.relative_to(ROOT)}")

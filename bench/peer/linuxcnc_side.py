@@ -38,6 +38,10 @@ def ensure_installed() -> str:
         subprocess.run(["apt-get", "update"], check=True, env=env, stdout=subprocess.DEVNULL)
         subprocess.run(["apt-get", "install", "-y", "--no-install-recommends", PACKAGE], check=True, env=env,
                        stdout=subprocess.DEVNULL)
+    return installed_version()
+
+
+def installed_version() -> str:
     out = subprocess.run(["dpkg-query", "-W", "-f=${Version}", PACKAGE], capture_output=True, text=True)
     return out.stdout.strip() or "unknown"
 

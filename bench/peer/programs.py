@@ -84,7 +84,11 @@ def _windows_ours(t: np.ndarray, marks: list[tuple[int, float]], count: int) -> 
 
 
 def _windows_lines(line: np.ndarray, lines: list[int]) -> list[np.ndarray]:
-    """Samples of each operation by the program line under way: [its line, the next one's)."""
+    """Samples of each operation by the program line under way: [its line, the next one's).
+    Inside a G71 (its contour an O-word subroutine) LinuxCNC reports line -1: such samples
+    belong to the line before them."""
+    known = np.where(line >= 0, np.arange(len(line)), 0)
+    line = np.asarray(line)[np.maximum.accumulate(known)]
     edges = list(lines) + [np.iinfo(np.int64).max]
     return [(line >= a) & (line < b) for a, b in zip(edges, edges[1:])]
 

@@ -88,7 +88,8 @@ def run_linuxcnc(rows: list[Row], prows: list, workroot: Path, reuse: bool, out:
             workdir = workroot / name
             if reuse:
                 status = json.loads((workdir / "driver.json").read_text())
-                out[name] = linuxcnc_side.parse_session(load_machine(name), status, workdir, 0.0)
+                wall = status.get("finished", 0.0) - status.get("started", 0.0)  # the driver's part of it
+                out[name] = linuxcnc_side.parse_session(load_machine(name), status, workdir, wall)
             else:
                 log(f"LinuxCNC {name}: {len(progs)} programs ...")
                 out[name] = linuxcnc_side.run_session(load_machine(name), progs, workdir)
@@ -102,7 +103,7 @@ def our_side(row: Row, variants: dict) -> dict:
     """Our figures for one row on both machine descriptions (a deep-hole row: on the normal
     one, its plan run through the drive model, as bench/deep_holes.py judges it)."""
     if row.kind == "deep":
-        _, cycle, chip, _ = deep_holes.judge(row.doc)  # asserts no violations
+        _, cycle, chip, _, _ = deep_holes.judge(row.doc)  # over topics; asserts no violations
         return {"jerk": {"time": cycle, "chip": chip, "viol": 0}}
     res = {}
     for key, machine in variants[row.machine].items():
@@ -254,14 +255,14 @@ def deep_section(rows: list[Row], lc: dict, us: dict) -> list[str]:
                   f"  {'way':<44} {'cycle s':>8} {'chip revs':>10} {'viol':>6}"]
         for name, f in (("LinuxCNC G83 (drive-model feedback)", g83.get("fb", {})),
                         ("LinuxCNC G83 (ideal loop)", g83.get("raw", {})),
-                        ("ours, G83-like pecks (drive-model feedback)", mine)):
+                        ("ours, G83-like pecks (recorded feedback)", mine)):
             lines.append(f"  {name:<44} {fmt(f.get('time'), '8.2f')} {fmt(f.get('chip'), '10.2f')} "
                          f"{fmt(f.get('viol'), '6d')}")
         if "error" in g83:
             lines.append(f"  LinuxCNC error: {g83['error']}")
     if lines:
-        lines += ["  ours: planned on the normal mill3 (max_jerk 200 m/s^3; LinuxCNC 2.9 plans without a jerk limit),",
-                  "  its commands through the drive model, as bench/deep_holes.py judges it (not over topics).",
+        lines += ["  ours: the normal mill3 (max_jerk 200 m/s^3; LinuxCNC 2.9 plans without a jerk limit), over topics",
+                  "  and judged on the recorded feedback, as bench/deep_holes.py judges it.",
                   "  viol: samples (ms) with the tip below R while X/Y is more than 10 um off the hole.",
                   "  chip: longest stretch cut without an air-cut (analyze_aircut per hole from the surface, as in",
                   "  bench/deep_holes.py; LinuxCNC's spindle taken at speed from M3 on); vibration drilling of the",
@@ -419,7 +420,8 @@ def program_notes() -> list[str]:
             "  motion.program-line; each judged with the operation's own document (times: first to last axis",
             "  motion within it). LC's spindle changes speed at once (sim_spindle); ours runs it down and up",
             "  between operations within the spindle's limits, the axes waiting. viol and depth error: on the",
-            "  recorded feedback, as the generated rows."]
+            "  recorded feedback, as the generated rows. The short moves between cycles are timed where each",
+            "  side's split falls (LinuxCNC changes line as its blended motion reaches the block): not comparable."]
 
 
 def main() -> int:
@@ -435,7 +437,7 @@ def main() -> int:
 
     rows = [r for r in all_rows() if not args.only or re.search(args.only, r.name)]
     prows = programs.program_rows(args.only)
-    version = "(reused recording)"
+    version = linuxcnc_side.installed_version() + " (recording reused)"
     if not args.reuse:
         version = linuxcnc_side.ensure_installed()
         linuxcnc_side.ensure_user()

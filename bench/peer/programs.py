@@ -13,6 +13,7 @@ operation's own job document.
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -54,7 +55,7 @@ class ProgramRow:
 
 
 def program_rows(only: str | None = None) -> list[ProgramRow]:
-    import re
+    """The files of config/programs/ (those whose name matches ``only``), in name order."""
     rows = []
     for path in sorted(PROGRAMS.glob("*.ngc")):
         if only and not re.search(only, path.stem):
@@ -93,8 +94,17 @@ def _windows_lines(line: np.ndarray, lines: list[int]) -> list[np.ndarray]:
     return [(line >= a) & (line < b) for a, b in zip(edges, edges[1:])]
 
 
+@dataclass
+class _AsRow:
+    """An operation seen as run.judge sees a row."""
+
+    kind: str
+    doc: dict
+
+
 def _judge_part(judge, row: ProgramRow, k: int, t, axes, spindle, part, machine) -> dict:
-    line, kind, doc = row.operations[k]
+    """One operation's figures from its share of a recording (``part``)."""
+    _, kind, doc = row.operations[k]
     if not part.any():
         return {"error": "no samples"}
     tt = t[part] - t[part][0]
@@ -106,14 +116,6 @@ def _judge_part(judge, row: ProgramRow, k: int, t, axes, spindle, part, machine)
         except Exception as err:  # noqa: BLE001 - one operation's judge failing is a table entry
             return {"error": f"{type(err).__name__}: {err}"[:120]}
     return {"time": analysis.cycle_time(tt, ax) if len(tt) > 2 else 0.0}
-
-
-@dataclass
-class _AsRow:
-    """An operation seen as run.judge sees a row."""
-
-    kind: str
-    doc: dict
 
 
 def judge_recording(judge, row: ProgramRow, t, axes, spindle, machine, starts=None, line=None) -> dict:

@@ -4,6 +4,9 @@ Round trip: the LinuxCNC programs bench/peer generates from its job documents (G
 G83, G76, G71) plan bit for bit the same setpoints as those documents. Bad programs are
 refused at their line, before anything is planned: hand-picked cases and fuzzed ones
 (hypothesis, derandomized) through the planner's Executive, which stays usable after each.
+The programs of config/programs/ (the files make bench-peer also runs on LinuxCNC) run over
+topics as one goal each, judged on their recorded feedback, and LinuxCNC's interpreter
+(rs274's outputs recorded by bench-peer) reads every cycle of them as our front end does.
 """
 from __future__ import annotations
 

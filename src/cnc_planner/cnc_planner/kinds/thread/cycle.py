@@ -68,7 +68,8 @@ class CutTiming:
     t_begin: float  # its air path begins (the previous pass leaves its helix)
     t_join: float  # on the helix
     t_out: float  # leaves the helix past end_z
-    retract: Trajectory  # x out towards spec.air_radius from t_out (the last pass: the clearance radius)
+    retract: Trajectory  # x out towards spec.air_radius from t_out (the last pass: the clearance
+    # radius, unless z runs straight back and x turns back down to it)
     stop: Trajectory  # z to rest from t_out
     t_done: float | None = None  # the last pass, where z turns back at once: when z stops
 

@@ -18,17 +18,10 @@ import os
 import pytest
 
 from cnc_msgs_py.discovery import dds_environment
+from support import domain_range
 
 
-def _domain_range() -> range:
-    """The domains this run may use: CNC_TEST_DOMAINS=LOW-HIGH, the user's ROS_DOMAIN_ID, or 1..100."""
-    chosen = os.environ.get("CNC_TEST_DOMAINS") or (f"{os.environ['ROS_DOMAIN_ID']}-{os.environ['ROS_DOMAIN_ID']}"
-                                                    if os.environ.get("ROS_DOMAIN_ID") else "1-100")
-    low, _, high = chosen.partition("-")
-    return range(int(low), int(high) + 1)
-
-
-_range = _domain_range()
+_range = domain_range()
 _domains = itertools.count(os.getpid() * 7)
 
 

@@ -17,6 +17,14 @@ JOBS = ROOT / "config" / "jobs"
 BIN = Path(sys.executable).parent
 
 
+def domain_range() -> range:
+    """The DDS domains this run may use: CNC_TEST_DOMAINS=LOW-HIGH, the user's ROS_DOMAIN_ID, or 1..100."""
+    chosen = os.environ.get("CNC_TEST_DOMAINS") or (f"{os.environ['ROS_DOMAIN_ID']}-{os.environ['ROS_DOMAIN_ID']}"
+                                                    if os.environ.get("ROS_DOMAIN_ID") else "1-100")
+    low, _, high = chosen.partition("-")
+    return range(int(low), int(high) + 1)
+
+
 def cnc(tool: str, *args: str, timeout: float = 600) -> subprocess.CompletedProcess:
     """Run one of the project's console scripts as a user would."""
     return subprocess.run([str(BIN / tool), *map(str, args)], capture_output=True, text=True,

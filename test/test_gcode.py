@@ -310,14 +310,15 @@ def test_g71_with_p_q_blocks_in_diameter_mode():
 
 def test_a_speed_change_between_operations_happens_after_the_first_one():
     """S1500 roughing then S600 threading: the spindle turns at 1500 rpm until the roughing
-    ends, then slows to 600 rpm before the thread starts."""
+    ends, then slows to 600 rpm before the thread's first pass meets its helix (the axes
+    may approach meanwhile, as a rapid would)."""
     text = (ROOT / "config" / "programs" / "lathe_g71_g76.ngc").read_text()
     m = load_machine("lathe")
     plan = plan_job(parse_job(program_doc(text, "lathe")), m, {"x": 0.03, "z": 0.0})
     marks = [(e.data["kind"], e.time) for e in plan.events if e.name == "operation"]
     assert [k for k, _ in marks] == ["move", "turn", "move", "thread", "move"]
     t_turn, t_after, t_thread = marks[1][1], marks[2][1], marks[3][1]
-    passes = [e.time for e in plan.events if e.name == "thread_pass" and e.time > t_thread]
+    passes = [e.time for e in plan.events if e.name == "sync" and e.time > t_thread]
     t = np.concatenate([np.linspace(t_turn + 1.0, t_after - 1e-3, 50), [passes[0] if passes else t_thread + 3.0]])
     _, v, _ = plan.sample(t)
     rpm = v[:, plan.joints.index("spindle")] * 60.0 / (2.0 * np.pi)

@@ -452,3 +452,28 @@ def test_a_plan_sample_evaluates_each_move_once_and_keeps_no_samples(monkeypatch
     assert motion._scope.depth == 0 and motion._scope.samples == {}
     plan.sample(ts)
     assert calls == [inside, inside]  # a second plan sample evaluates again: nothing was kept
+
+
+def test_a_carried_correction_rides_on_later_pieces_and_holds_the_joint_where_none_is():
+    """JointTimeline.carry: a correction from the timeline's end to 0.3 s is added to a
+    piece that starts later (a hold fills the gap with it) and, after flush, to a hold
+    until it has settled; the plan lasts until then."""
+    from cnc_planner.motion.timeline import JointTimeline, Piece
+
+    def ramp(t):
+        return 0.01 * t, np.full_like(t, 0.01), np.zeros_like(t)
+
+    def correction(t):
+        return 1e-3 * (0.3 - t), np.full_like(t, -1e-3), np.zeros_like(t)
+
+    line = JointTimeline(0.0)
+    line.add(Piece(0.0, 0.1, ramp), 0.001)
+    line.carry(0.1, 0.3, correction)
+    assert line.settled_time == pytest.approx(0.3) and line.end_time == pytest.approx(0.1)
+    line.add(Piece(0.2, 0.05, lambda t: (0.001 + 0.0 * t, 0.0 * t, 0.0 * t)), 0.001)
+    line.flush()
+    t = np.array([0.15, 0.22, 0.28, 0.35])
+    p, v, _ = line.sample(t)
+    assert p == pytest.approx(0.001 + 1e-3 * np.maximum(0.3 - t, 0.0) * (t < 0.3))
+    assert v[:3] == pytest.approx([-1e-3] * 3) and v[3] == 0.0
+    assert line.end_time == pytest.approx(0.3)

@@ -231,14 +231,15 @@ def test_internal_two_start_thread():
 @pytest.mark.parametrize("internal, major_mm", [(False, 6.0), (True, 4.5)])
 def test_taper_thread_follows_the_cone_on_feedback(internal, major_mm):
     """1:16 taper: x moves with the groove by taper/2 per unit of z, hand-computed at the face
-    and at end_z on the full-depth pass; the feedback is full depth below the cone."""
+    and at end_z on the full-depth pass of the motion (the plain command: the compensated
+    one leads it near the join); the feedback is full depth below the cone."""
     spec = dataclasses.replace(SPEC, taper=1 / 16, internal=internal, major_radius=mm(major_mm))
-    result = run(spec)
-    report, info = result["report"], result["info"]
+    report = run(spec)["report"]
     assert report["chips_broken"] and report["full_depth"] and report["helix_residual_mm"] < 0.01
+    motion, info = plan(spec, compensate=False)
     spring = info[-1]
     t = np.arange(math.ceil(spring["t_sync"] / T), math.floor(spring["t_end"] / T)) * T
-    x, z, _ = result["plan"].sample(t)[0].T
+    x, z, _ = motion.sample(t)[0].T
     tan, radial = math.tan(SPEC.infeed_angle), 1.0 if internal else -1.0
     g = z + 1.07e-3 * tan  # the groove's z under the tip at full depth (feed towards -z)
     on_thread = (g <= 0.0) & (g >= SPEC.end_z)

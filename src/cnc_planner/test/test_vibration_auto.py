@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from cnc_msgs_py.job import load_job_file, parse_job
@@ -42,6 +43,25 @@ def test_auto_on_lathe_soft_breaks_every_chip_within_its_window():
     assert aircut["max_chip_revs"] <= choice["window_revs"]
     # predicted on the commanded spindle angle, judged on its feedback
     assert aircut["max_chip_revs"] == pytest.approx(choice["predicted_chip_revs"], abs=0.02)
+
+
+def test_explicit_d_1_5_on_lathe_soft_breaks_every_chip_within_one_revolution():
+    """The example move (D 1.5 Q 1.2) on lathe_soft: its command settles 0.13 s (1.3
+    revolutions) after the tool arrives; resting there cut the ring the last revolution left
+    (one 1.19-revolution chip). The feed now ends on arrival and the x retract leaves at
+    once, carrying nothing: z holds with its settling (the same z command as before)."""
+    machine = load_machine("lathe_soft")
+    doc = {**load_job_file(JOBS / "lathe_feed_vibration.yaml"), "machine": "lathe_soft"}
+    plan = plan_job(parse_job(doc), machine, dict(zip(machine.joint_names, machine.home_position)))
+    aircut = build_report(predicted_run(doc, plan, machine), machine)["aircut"]["feedback"]
+    assert aircut["revolutions"] >= 100 and aircut["revolutions_with_aircut"] == aircut["revolutions"]
+    assert aircut["max_chip_revs"] <= 1.0
+    end = next(e.time for e in plan.events if e.name == "vibration_end")
+    retract = next(e.time for e in plan.events if e.name == "rapid" and e.time > end - 1e-9)
+    assert retract == pytest.approx(end)  # the retract leaves on arrival
+    t = np.arange(round(end * 1000), round((end + 0.2) * 1000)) * 1e-3
+    z = plan.sample(t)[0][:, machine.joint_names.index("z")]
+    assert np.ptp(z) > 1e-7  # z still settles under the retract: a hold carrying the correction
 
 
 def test_auto_keeps_d_1_5_where_the_axis_follows_it_and_explicit_parameters_stay():

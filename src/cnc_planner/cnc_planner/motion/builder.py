@@ -35,6 +35,11 @@ class PlanBuilder:
         joints = joints or [j for j in self.machine.joint_names if j != SPINDLE]
         return max(self.timelines[j].end_time for j in joints)
 
+    def free_from(self, joints: list[str] | tuple[str, ...]) -> float:
+        """When a move of ``joints`` may start: every axis done with its previous piece,
+        and these joints settled (a feed's carried settling overlaps only other joints)."""
+        return max([self.end_time()] + [self.timelines[j].settled_time for j in joints])
+
     def event(self, time: float, name: str, **data: object) -> None:
         self.events.append(Event(time, name, data))
 
@@ -44,10 +49,14 @@ class PlanBuilder:
             self.timelines[joint].add(Piece(start, move.duration, move.sampler(dof)), ends[dof], velocity)
         return start + move.duration
 
+    def moving(self, target: dict[str, float]) -> list[str]:
+        """The joints a rapid to ``target`` moves."""
+        return [j for j in target if abs(target[j] - self.position(j)) > 1e-12]
+
     def rapid(self, target: dict[str, float], start: float | None = None) -> float:
         """Time-optimal positioning of the named axes (rest to rest); returns the end time."""
-        joints = [j for j in target if abs(target[j] - self.position(j)) > 1e-12]
-        begin = self.end_time() if start is None else start
+        joints = self.moving(target)
+        begin = self.free_from(joints) if start is None else start
         if not joints:
             return begin
         move = point_to_point(
@@ -73,7 +82,7 @@ class PlanBuilder:
         joints = list(target)
         p0 = np.array([self.position(j) for j in joints])
         p1 = np.array([target[j] for j in joints])
-        begin = max(self.end_time(), self.spindle_ready) if start is None else start
+        begin = max(self.free_from(joints), self.spindle_ready) if start is None else start
         if np.linalg.norm(p1 - p0) <= 1e-12:
             return begin
         move = LinearMove(p0, p1, [axis_limits(self.machine.axes[j]) for j in joints], feed)
@@ -95,7 +104,10 @@ class PlanBuilder:
 
     def build(self, stop_spindle: bool = True) -> Plan:
         """The finished plan; the spindle is stopped at the end if still turning, unless
-        another segment of the same job follows."""
+        another segment of the same job follows. Corrections still carried (a vibrated
+        feed's settling) hold their joints until they have settled."""
+        for timeline in self.timelines.values():
+            timeline.flush()
         if stop_spindle and SPINDLE in self.timelines and abs(self.timelines[SPINDLE].end_velocity) > 0.0:
             self.spindle(0.0, start=max(self.end_time(), self.timelines[SPINDLE].end_time))
         self.events.sort(key=lambda e: e.time)

@@ -18,6 +18,8 @@ from cnc_planner.motion.moves import shared_samples
 
 # Local time (s, from the piece's start) -> position, velocity, acceleration arrays.
 Sampler = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
+# Plan time (s) -> position, velocity and acceleration offsets (JointTimeline.carry).
+Correction = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 
 @dataclass(frozen=True)
@@ -48,10 +50,17 @@ class JointTimeline:
         self._starts: list[float] = []
         self._coast: list[tuple[float, float, float]] = [(0.0, position, velocity)]  # (t, p, v)
         self._coast_array: np.ndarray | None = None
+        self._carried: list[tuple[float, float, Correction]] = []  # (from, until, plan time -> p, v, a)
 
     @property
     def end_time(self) -> float:
         return self.pieces[-1].end if self.pieces else 0.0
+
+    @property
+    def settled_time(self) -> float:
+        """When its last piece and every correction it carries are over: a move of this
+        joint starts no sooner (only other joints' moves overlap a carried settling)."""
+        return max([self.end_time] + [end for _, end, _ in self._carried])
 
     @property
     def start_position(self) -> float:
@@ -70,9 +79,59 @@ class JointTimeline:
         t0, p0, v0 = self._coast[-1]
         return p0 + v0 * (t - t0)
 
+    def carry(self, start: float, end: float, correction: Correction) -> None:
+        """Add ``correction`` (plan times -> position, velocity and acceleration offsets) to
+        whatever this joint is commanded from ``start`` (where its timeline ends) until
+        ``end``: a compensated command still settling while the next move already runs
+        (the drive is linear: its feedback is the sum of both responses). Pieces added
+        later carry their share; where none is, the joint holds with it (flush)."""
+        self._carried.append((start, end, correction))
+
+    def flush(self) -> None:
+        """Hold the joint with every correction still carried until it has settled."""
+        if self._carried:
+            self._fill(max(end for _, end, _ in self._carried))
+
+    def _fill(self, until: float) -> None:
+        """A hold carrying the corrections from the timeline's end up to ``until``."""
+        start, position = self.end_time, self.end_position
+        end = min(until, max((end for _, end, _ in self._carried), default=start))
+        if end > start + 1e-12:
+            def hold(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                return np.full_like(t, position), np.zeros_like(t), np.zeros_like(t)
+            self._append(self._carrying(Piece(start, end - start, hold)), position, 0.0)
+
+    def _carrying(self, piece: Piece) -> Piece:
+        """The piece plus the carried corrections over its span; those it outlasts dropped."""
+        mine = [c for c in self._carried if c[0] < piece.end and c[1] > piece.start]
+        self._carried = [c for c in self._carried if c[1] > piece.end]
+        if not mine:
+            return piece
+        base = piece.sample
+
+        def sample(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            p, v, a = (np.array(x, dtype=float) for x in base(t))
+            g = t + piece.start
+            for lo, hi, correction in mine:
+                inside = (g >= lo) & (g < hi)
+                if inside.any():
+                    dp, dv, da = correction(g[inside])
+                    p[inside] += dp
+                    v[inside] += dv
+                    a[inside] += da
+            return p, v, a
+
+        return Piece(piece.start, piece.duration, sample)
+
     def add(self, piece: Piece, end_position: float, end_velocity: float = 0.0) -> None:
         if piece.start < self.end_time - 1e-12:
             raise ValueError(f"piece at {piece.start} s overlaps the timeline ending {self.end_time} s")
+        if self._carried:
+            self._fill(piece.start)
+            piece = self._carrying(piece)
+        self._append(piece, end_position, end_velocity)
+
+    def _append(self, piece: Piece, end_position: float, end_velocity: float) -> None:
         self.pieces.append(piece)
         self._starts.append(piece.start)
         self._coast.append((piece.end, end_position, end_velocity))

@@ -146,7 +146,8 @@ def choose_vibration(feed_per_rev: float, spindle_speed: float, axis: Axis,
 def working_alternative(vib: Vibration, feed_per_rev: float, spindle_speed: float, axis: Axis) -> str:
     """What would work on this axis instead of a refused vibration, as a refusal says it:
     the waveform with its Q raised to air-cut (if too small) at the highest speed it allows,
-    and the shortest-window waveform at this speed (what ``vibration: auto`` tries first)."""
+    and the shortest-window waveform at this speed (what ``vibration: auto`` tries first), or
+    if none is fast enough, the longest window at the highest speed it allows."""
     parts = []
     q_min = _min_q(vib)
     whole = abs(vib.vibrations_per_rev - round(vib.vibrations_per_rev)) < 1e-9
@@ -157,4 +158,7 @@ def working_alternative(vib: Vibration, feed_per_rev: float, spindle_speed: floa
     here = feasible(feed_per_rev, spindle_speed, axis)
     if here:
         parts.append(f"{here[0].text()} at {spindle_speed * 60 / TWO_PI:.0f} rpm")
-    return "works: " + (", or ".join(parts) if parts else "none on this axis") + " (vibration: auto chooses)"
+    elif not parts:  # nothing at this speed: the longest window, at the highest speed it allows
+        slowest, top = candidates(feed_per_rev, axis)[-1]
+        parts.append(f"{slowest.text()} up to {math.floor(SPEED_HEADROOM * top * 60 / TWO_PI):.0f} rpm")
+    return "works: " + ", or ".join(parts) + " (vibration: auto chooses)"

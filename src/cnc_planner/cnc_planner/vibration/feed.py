@@ -95,7 +95,9 @@ def feed_move(builder: PlanBuilder, target: dict[str, float], feed_per_rev: floa
     vibration along the path if given (AUTO: chosen for this move); returns the end time.
 
     The vibration is locked to the spindle angle, so the move starts once the spindle
-    runs at speed; the drive model of the axis that moves most pre-compensates it.
+    runs at speed; the drive model of the axis that moves most pre-compensates it. It
+    ends on arrival at ``target``: the command's settling is carried by whatever its axes
+    do next (JointTimeline.carry), so the tool does not rest there while it settles.
     """
     machine = builder.machine
     speed = builder.timelines[SPINDLE].end_velocity
@@ -105,7 +107,7 @@ def feed_move(builder: PlanBuilder, target: dict[str, float], feed_per_rev: floa
     p0 = np.array([builder.position(j) for j in joints])
     delta = np.array([target[j] for j in joints]) - p0
     length = float(np.linalg.norm(delta))
-    start = max(builder.end_time(), builder.spindle_ready)
+    start = max(builder.free_from(joints), builder.spindle_ready)
     if length <= 1e-12:
         return start
     direction = delta / length
@@ -120,7 +122,7 @@ def feed_move(builder: PlanBuilder, target: dict[str, float], feed_per_rev: floa
     drive = lambda: DriveModel(machine, SERVO_PERIOD, (lead,))  # noqa: E731
     angle = builder.timelines[SPINDLE].position_at(start)
     vibration, chosen = resolved(vibration, feed_per_rev, abs(speed), along, drive, SERVO_PERIOD,
-                                 length=length, start_angle=angle)
+                                 rests=False, length=length, start_angle=angle)
     try:
         move = VibrationFeed(length, feed_per_rev, vibration, abs(speed), along,
                              start_angle=angle, drive_model_factory=drive)
@@ -130,11 +132,24 @@ def feed_move(builder: PlanBuilder, target: dict[str, float], feed_per_rev: floa
         raise vibration_error(err, vibration, feed_per_rev, abs(speed), along) from err
     builder.event(start, "vibration_feed", start=p0.tolist(), direction=direction.tolist(),
                   joints=joints, length=length, feed_per_rev=feed_per_rev, field=field, vibration=chosen)
+    # the feed ends on arrival: the next move starts there and carries the command's
+    # settling (a retract leaves at once instead of resting on the ring the last
+    # revolution left), as a drill's retract does
+    arrival = move.settle_start
     for dof, joint in enumerate(joints):
-        builder.timelines[joint].add(Piece(start, move.duration, _along(move, p0[dof], direction[dof])),
-                                     float(target[joint]))
-    builder.event(start + move.duration, "vibration_end")
-    return start + move.duration
+        timeline = builder.timelines[joint]
+        timeline.add(Piece(start, arrival, _along(move, p0[dof], direction[dof])), float(target[joint]))
+        if move.duration > arrival and direction[dof] != 0.0:
+            timeline.carry(start + arrival, start + move.duration, _settling(move, start, direction[dof]))
+    builder.event(start + arrival, "vibration_end")
+    return start + arrival
+
+
+def _settling(move: VibrationFeed, start: float, d: float):
+    def correction(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        s, v, a = move.settling(t - start)
+        return d * s, d * v, d * a
+    return correction
 
 
 def _along(move: VibrationFeed, p0: float, d: float):

@@ -47,6 +47,7 @@ def plan_move(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin:
             builder.event(start, "dwell", move=i)
             continue
         kind = "rapid" if move.rapid is not None else "linear"
+        start = builder.free_from(builder.moving(axes) if kind == "rapid" else list(axes))  # as the move starts
         builder.event(start if kind == "rapid" else max(start, builder.spindle_ready), kind, move=i)
         if kind == "rapid":
             builder.rapid(axes)

@@ -8,6 +8,7 @@ do (the least Q, the highest spindle speed).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -26,6 +27,8 @@ Q_MAX = 20.0  # the job schema's bound: the search for a working Q stops there
 WAVE_POINTS = 4096  # phase samples for the waveform's derivative maxima
 WAVE_LIMIT_SHARE = 0.95  # of each axis limit for the vibration: the compensated command
 # leads the motion and runs a few per cent above it
+SUGGESTED_Q = 1.2  # a refused Q <= 1 is told this (or the least that breaks the chip, if more)
+D_STEP, D_TRIES = 0.5, 8  # vibrations/rev: the higher D a refusal tries, in these steps
 MAX_PASS_REVS = 2000  # spindle revolutions of one pass: checks and plans sample every one
 MAX_PASS_S = 600.0  # s of helix per pass: a longer pass is a mistyped pitch or speed
 
@@ -196,14 +199,11 @@ def _check_vibration_fields(vib: ThreadVibration) -> None:
         raise ThreadError("vibration.phase_shift", f"expected a finite angle, got {vib.phase_shift!r}")
 
 
-def _check_chips(spec: ThreadSpec, vib: ThreadVibration) -> None:
+def _check_chips(spec: ThreadSpec, vib: ThreadVibration, machine: Machine) -> None:
     """Every vibrated pass must break its chip within CHIP_LIMIT_REVS; else name the field
-    to change: phase_shift (if 180 deg would do), Q (with the least that works), or D."""
-    if vib.Q <= 1.0:
-        raise ThreadError(
-            "vibration.Q", f"{vib.Q:g} never lifts the tool out of the cut: the return must rise above the "
-            "earlier passes by more than the depth of cut (amplitude = Q x depth of cut); need Q > 1"
-        )
+    to change and a parameter set that works on this machine: phase_shift (if 180 deg
+    would do), Q (the least that works), or D (the least in D_TRIES steps that works),
+    with the highest spindle speed the axes follow it at where that is below the job's."""
     if spec.spring_passes < 1:
         raise ThreadError(
             "thread.spring_passes", "0 with a vibration leaves the last pass's returns standing; need >= 1"
@@ -214,29 +214,59 @@ def _check_chips(spec: ThreadSpec, vib: ThreadVibration) -> None:
         return float(revs.max()), int(np.argmax(revs)) + 1
 
     def breaks(q: float) -> bool:
-        return worst(ThreadVibration(vib.D, q, vib.phase_shift, vib.D_step))[0] <= CHIP_LIMIT_REVS
+        return worst(replace(vib, Q=q))[0] <= CHIP_LIMIT_REVS
 
-    chip, k = worst(vib)
-    if chip <= CHIP_LIMIT_REVS:
-        return
-    told = f"leaves a continuous cut of {chip:.2f} revs in pass {k}"
-    if worst(ThreadVibration(vib.D, vib.Q, math.pi, vib.D_step))[0] <= CHIP_LIMIT_REVS:
-        raise ThreadError(
-            "vibration.phase_shift", f"{math.degrees(vib.phase_shift):g} deg {told}: its returns miss "
-            "the previous pass's turning points; 180 deg puts them there"
-        )
-    qs = np.geomspace(vib.Q, Q_MAX, 40)
-    first = next((i for i in range(1, qs.size) if breaks(qs[i])), None)
-    if first is not None:
+    def least_q(q0: float) -> float | None:
+        qs = np.geomspace(q0, Q_MAX, 40)
+        first = next((i for i in range(1, qs.size) if breaks(qs[i])), None)
+        if first is None:
+            return None
         lo, hi = qs[first - 1], qs[first]
         for _ in range(12):
             mid = (lo + hi) / 2
             lo, hi = (lo, mid) if breaks(mid) else (mid, hi)
-        raise ThreadError("vibration.Q", f"{vib.Q:g} {told}; need Q >= {math.ceil(hi * 100) / 100:.2f}")
+        return math.ceil(hi * 100) / 100
+
+    if vib.Q <= 1.0:
+        q = least_q(1.0)  # suggested with the margin the seed's Q 1.2 has, where that is more
+        q = None if q is None else max(q, SUGGESTED_Q)
+        works = f"; {_works(spec, machine, replace(vib, Q=q), f'Q {q:.2f}')}" if q is not None else ""
+        raise ThreadError(
+            "vibration.Q", f"{vib.Q:g} never lifts the tool out of the cut: the return must rise above the "
+            f"earlier passes by more than the depth of cut (amplitude = Q x depth of cut); need Q > 1{works}"
+        )
+    chip, k = worst(vib)
+    if chip <= CHIP_LIMIT_REVS:
+        return
+    told = f"leaves a continuous cut of {chip:.2f} revs in pass {k}"
+    if worst(replace(vib, phase_shift=math.pi))[0] <= CHIP_LIMIT_REVS:
+        raise ThreadError(
+            "vibration.phase_shift", f"{math.degrees(vib.phase_shift):g} deg {told}: its returns miss "
+            f"the previous pass's turning points; 180 deg puts them there"
+            f" ({_works(spec, machine, replace(vib, phase_shift=math.pi), 'phase_shift 180')})"
+        )
+    q = least_q(vib.Q)
+    if q is not None:
+        raise ThreadError("vibration.Q", f"{vib.Q:g} {told}; need Q >= {q:.2f} "
+                                         f"({_works(spec, machine, replace(vib, Q=q), f'Q {q:.2f}')})")
+    more = next((d for d in vib.D + D_STEP * np.arange(1, D_TRIES + 1)
+                 if worst(replace(vib, D=float(d)))[0] <= CHIP_LIMIT_REVS), None)
     raise ThreadError(
         "vibration.D", f"{vib.D:g} vibrations/rev (+{vib.D_step:g} per pass) {told}; the chip breaks at most "
         "once per vibration: raise D"
+        + (f" ({_works(spec, machine, replace(vib, D=float(more)), f'D {more:g}')})" if more is not None else "")
     )
+
+
+def _works(spec: ThreadSpec, machine: Machine, vib: ThreadVibration, named: str) -> str:
+    """How a refusal names ``vib`` (the changed parameter ``named``) as working: at the
+    job's spindle speed, or up to the highest the axes follow it at."""
+    try:
+        _check_follow(replace(spec, vibration=vib), machine)
+    except ThreadError as err:
+        top = str(err).rsplit("max spindle speed ", 1)[-1]
+        return f"{named} works up to {top}"
+    return f"{named} works at {_rpm(spec.spindle_speed):.0f} rpm"
 
 
 def _check_follow(spec: ThreadSpec, machine: Machine) -> None:
@@ -285,6 +315,6 @@ def check_thread(spec: ThreadSpec, machine: Machine) -> None:
     _check_speed(spec, machine)
     _check_length(spec)  # before the vibration checks, which sample every revolution
     if spec.vibration is not None:
-        _check_chips(spec, spec.vibration)
+        _check_chips(spec, spec.vibration, machine)
         _check_follow(spec, machine)
     _check_room(spec, machine)

@@ -21,7 +21,7 @@ from cnc_servo_bridge.drive import DriveModel
 
 from cnc_planner.kinds.thread.helix import helix
 from cnc_planner.kinds.thread.ramps import Ramps, z_to_speed
-from cnc_planner.kinds.thread.spec import TWO_PI, Pass, ThreadError, ThreadSpec, passes_of
+from cnc_planner.kinds.thread.spec import JOINTS, TWO_PI, Pass, ThreadError, ThreadSpec, passes_of
 from cnc_planner.motion.compensation import COMPENSATION_TAIL, learned_command
 from cnc_planner.motion.jerk_profile import TrajectorySampler
 
@@ -33,6 +33,10 @@ MAX_AIR_S = 3.0  # s: longest the search for a pass's join looks beyond its earl
 JOIN_ROOM_REVS = 0.05  # revolutions of helix, at least, between joining it and the face
 TURN_ROOM = (0.5e-3, 1e-3, 2e-3)  # m in front of a join where z may turn at rest, so that x
 # plunges while z is clear of the face
+THROUGH_SPEEDS = (0.03, 0.02, 0.01)  # m/s: speeds at which a z return may cross the face outwards
+THROUGH_FRONT = 0.05e-3  # m in front of the face where it crosses at that speed
+JOIN_JERK_STEP = 1.0  # of the axis jerk limit: the largest jerk step onto a helix
+JERK_PROBE_S = 1e-5  # s: the jerk either side of a join is the acceleration's slope over this
 JOIN_BATCH = 64  # candidate joins whose helix states are evaluated at once
 
 
@@ -64,61 +68,64 @@ class CutTiming:
     t_begin: float  # its air path begins (the previous pass leaves its helix)
     t_join: float  # on the helix
     t_out: float  # leaves the helix past end_z
-    retract: Trajectory  # x out towards spec.air_radius from t_out (the last pass: the clearance radius)
+    retract: Trajectory  # x out towards spec.air_radius from t_out (the last pass: the clearance
+    # radius, unless z runs straight back and x turns back down to it)
     stop: Trajectory  # z to rest from t_out
+    t_done: float | None = None  # the last pass, where z turns back at once: when z stops
 
     @property
     def t_end(self) -> float:
-        return self.t_out + max(self.retract.duration, self.stop.duration)
+        """When the pass is over: x out and z at rest (the last pass: z turning back)."""
+        return self.t_out + max(self.retract.duration, self.stop.duration) if self.t_done is None else self.t_done
 
 
 class ThreadCycle:
     """Every pass of every start as one continuous motion of x and z, on a clock from the
-    cycle start (at rest at the clearance radius and start_z, the spindle at speed).
+    cycle start (at rest in front of the face: where the tool stands, or the clearance
+    radius at start_z).
 
-    Between passes the tool never stops to wait. At the first servo instant past end_z
-    (the relief groove) x pulls out, heading for spec.air_radius, and z runs one
-    jerk-limited path onto the next pass's running helix, timed to arrive there at the servo
-    instant the spindle phase allows: straight from the helix where x leaves the stock in
-    time, else from rest once x is out, or turning at rest TURN_ROOM in front of the join so
-    that x can plunge while z is clear of the face. x turns back from its way out at the
-    latest instant from which it still lands on the helix. Which helix revolution a pass
-    joins is the earliest whose join lies before the face by JOIN_ROOM_REVS and that the
-    axes can reach with the tool never inside the stock over the thread. After the last
-    pass x pulls out to the clearance radius and z returns to start_z, both inside the
-    cycle. With a drive model the whole cycle is compensated at once
+    The first pass runs from there straight onto its helix, both axes leaving at the last
+    servo instant they can, onto the latest join of its helix revolution. Between passes
+    the tool never stops to wait. At the first servo instant past end_z (the relief
+    groove) x pulls out, heading for spec.air_radius, and z runs one jerk-limited path onto
+    the next pass's running helix, timed to arrive there at the servo instant the spindle
+    phase allows: straight from the helix where x leaves the stock in time, else from rest
+    once x is out, or crossing the face as soon as it can at THROUGH_SPEEDS and turning in
+    front of it (the deepest passes, where x needs that long to plunge), or turning at rest
+    TURN_ROOM in front of the join. x turns back from its way out at the latest instant
+    from which it still lands on the helix. Which helix revolution a pass joins is the
+    earliest whose join lies before the face by JOIN_ROOM_REVS, that the axes can reach
+    with the tool never inside the stock over the thread, and where the jerk steps by at
+    most JOIN_JERK_STEP. After the last pass z runs straight back to start_z while x pulls
+    out and turns back down to the clearance radius (else z waits at rest until x is out),
+    inside the cycle. With a drive model the whole cycle is compensated at once
     (motion.compensation): the command's lead-in of each pass runs while the tool is
     still in the air, and only the cycle's start needs LEAD_TIME at rest.
     """
 
     def __init__(self, spec: ThreadSpec, machine: Machine, period: float, theta0: float,
-                 drive: DriveModel | None = None, settled: float = 0.0) -> None:
-        """``settled``: cycle time before which no pass may join its helix (the spindle's
-        following error dies out meanwhile, while the axes already approach)."""
+                 drive: DriveModel | None = None, settled: float = 0.0,
+                 start: tuple[float, float] | None = None) -> None:
+        """``theta0``: the spindle angle at cycle time 0 as if it turned at speed already
+        (the helix is only ever evaluated after ``settled``, the cycle time before which no
+        pass may join it: the spindle is at speed and its following error has died out
+        meanwhile, while the axes already approach). ``start``: axis (x, z) where the
+        cycle begins at rest, in front of the face (default: the clearance radius at
+        start_z); the first pass runs from there straight onto its helix."""
         self.spec, self.machine, self.period, self.theta0 = spec, machine, period, theta0
         self.settled = settled
         self._ramps = Ramps(machine)
         self.t_lead = round(LEAD_TIME / period) * period
         self.x_clear = spec.origin[0] + spec.clear_radius
         self.x_air = spec.origin[0] + spec.air_radius
-        self.tracks: list[list[Stretch]] = [[(0.0, _held(self.x_clear))],
-                                            [(0.0, _held(spec.origin[1] + spec.start_z))]]
+        self.start = start or (self.x_clear, spec.origin[1] + spec.start_z)
+        self.tracks: list[list[Stretch]] = [[(0.0, _held(self.start[0]))], [(0.0, _held(self.start[1]))]]
         self.cuts: list[CutTiming] = []
         for cut in passes_of(spec):
             for start in range(spec.starts):
                 self._add(cut, start)
-        # the last pass pulls out to the clearance radius, and z runs back to the cycle's
-        # start once x is out of the stock, inside the compensated cycle
-        last = self.cuts[-1]
-        last.retract = self._ramps.reach("x", [float(q[0]) for q in last.retract.at_time(0.0)],
-                                         [self.x_clear, 0.0, 0.0])
-        self.tracks[0][-1] = (last.t_out, _moving(last.t_out, last.retract))
-        t_go, z_from = self._at_rest_clear(last)
-        t_go = math.ceil(max(t_go, last.t_end) / period - 1e-9) * period  # the pass is over first
-        home = self._ramps.reach("z", [z_from, 0.0, 0.0], [spec.origin[1] + spec.start_z, 0.0, 0.0])
-        self.tracks[1].append((t_go, _moving(t_go, home)))
         self.end = np.array([self.x_clear, spec.origin[1] + spec.start_z])
-        self.duration = math.ceil(max(last.t_end, t_go + home.duration) / period - 1e-9) * period
+        self.duration = math.ceil(self._finish(self.cuts[-1]) / period - 1e-9) * period
         self._correction: np.ndarray | None = None
         self._cache: tuple[tuple[int, float, float], np.ndarray] | None = None
         if drive is not None:
@@ -133,7 +140,6 @@ class ThreadCycle:
 
     def _add(self, cut: Pass, start: int) -> None:
         spec, period = self.spec, self.period
-        s, x0, z0 = spec.direction, spec.origin[0], spec.origin[1]
         if self.cuts:
             last = self.cuts[-1]
             t_begin, x_free = last.t_out, last.t_out + last.retract.duration
@@ -144,34 +150,101 @@ class ThreadCycle:
             starts = [(last.t_out, [float(q[0]) for q in last.stop.at_time(0.0)]), (t_go, [z_from, 0.0, 0.0])]
         else:
             t_begin, x_free = 0.0, self.t_lead
-            t_go, z_from = self.t_lead, z0 + spec.start_z
-            starts = [(t_go, [z_from, 0.0, 0.0])]
+            starts = [(self.t_lead, [self.start[1], 0.0, 0.0])]
         phase = TWO_PI * start / spec.starts
         psi_room = TWO_PI * (spec.start_z / spec.pitch - JOIN_ROOM_REVS)  # the latest join before the face
         first = max(math.ceil(starts[0][0] / period - 1e-9) + 1, math.ceil(self.settled / period - 1e-9))
         for k, t_join, theta_ref, target in self._joins(cut, phase, psi_room, first,
                                                         first + math.ceil(MAX_AIR_S / period)):
-            grid = np.arange(math.floor(t_begin / period), k) * period
-            for tried in self._air_paths(target, t_join, starts, x_free):
-                x, z = (self._sample(track + extra, grid)[0] for track, extra in zip(self.tracks, tried))
-                depth = spec.radial * (x - x0 - spec.surface(z - z0))
-                over_stock = (s * (z - z0) >= 0.0) & (s * (z - z0) <= s * spec.end_z)
-                if not np.any(over_stock & (depth > 0.0)):
+            tried = self._air_path(target, t_join, t_begin, starts, x_free)
+            if tried is not None and self._smooth_join(cut, theta_ref, t_join, tried):
+                break
+        else:
+            raise ThreadError(
+                "thread.start_z", f"the axes cannot reach the helix of pass {cut.index + 1} in front of the "
+                f"face within {MAX_AIR_S:g} s"
+            )
+        if not self.cuts:  # from rest, a later join onto the same revolution meets the face as
+            # soon, and the axes stay at rest longer: the latest that can be reached smoothly
+            latest = math.floor((theta_ref + psi_room - self.theta0) / spec.spindle_speed / period + 1e-9)
+            for k_late in range(latest, k, -1):
+                t_late = k_late * period
+                late_target = helix(spec, cut, np.array([self.psi(theta_ref, t_late)])).transpose(1, 2, 0)[0]
+                late = self._air_path(late_target, t_late, t_begin, starts, x_free)
+                if late is not None and self._smooth_join(cut, theta_ref, t_late, late):
+                    t_join, tried = t_late, late
                     break
-            else:
-                continue
-            on_helix = self._on_helix(cut, theta_ref)
-            for j in range(2):
-                self.tracks[j] += tried[j] + [(t_join, lambda t, j=j: on_helix(t)[:, :, j])]
-            t_out, retract, stop = self._exit(cut, theta_ref, t_join)
-            self.tracks[0].append((t_out, _moving(t_out, retract)))
-            self.tracks[1].append((t_out, _moving(t_out, stop)))
-            self.cuts.append(CutTiming(cut, start, theta_ref, t_begin, t_join, t_out, retract, stop))
-            return
-        raise ThreadError(
-            "thread.start_z", f"the axes cannot reach the helix of pass {cut.index + 1} in front of the "
-            f"face within {MAX_AIR_S:g} s"
-        )
+        on_helix = self._on_helix(cut, theta_ref)
+        for j in range(2):
+            self.tracks[j] += tried[j] + [(t_join, lambda t, j=j: on_helix(t)[:, :, j])]
+        t_out, retract, stop = self._exit(cut, theta_ref, t_join)
+        self.tracks[0].append((t_out, _moving(t_out, retract)))
+        self.tracks[1].append((t_out, _moving(t_out, stop)))
+        self.cuts.append(CutTiming(cut, start, theta_ref, t_begin, t_join, t_out, retract, stop))
+
+    def _smooth_join(self, cut: Pass, theta_ref: float, t_join: float, tried: list[list[Stretch]]) -> bool:
+        """Whether the air path's jerk steps onto the helix by at most JOIN_JERK_STEP of
+        each axis's limit: the compensated command leads a jerk step with a spike that
+        grows with it (the ramps end at their share of the limit, a fast vibration runs
+        near the limit, and they may meet with opposite signs)."""
+        eps = JERK_PROBE_S
+        before = np.array([t_join - 2 * eps, t_join - eps])
+        after = helix(self.spec, cut, self.psi(theta_ref, np.array([t_join, t_join + eps])))[2]  # (2 instants, x z)
+        for j, axis in enumerate(JOINTS):
+            a = self._sample(self.tracks[j] + tried[j], before)[2]
+            step = (after[1, j] - after[0, j]) / eps - (a[1] - a[0]) / eps
+            if abs(step) > JOIN_JERK_STEP * self.machine.axis(axis).max_jerk:
+                return False
+        return True
+
+    def _air_path(self, target: np.ndarray, t_join: float, t_begin: float,
+                  starts: list[tuple[float, list[float]]], x_free: float) -> list[list[Stretch]] | None:
+        """The first of _air_paths onto ``target`` at t_join that keeps the tool out of the
+        stock from t_begin on, or None."""
+        grid = np.arange(math.floor(t_begin / self.period), round(t_join / self.period)) * self.period
+        for tried in self._air_paths(target, t_join, starts, x_free):
+            if not self._cuts_stock(*(self._sample(track + extra, grid)[0] for track, extra in zip(self.tracks, tried))):
+                return tried
+        return None
+
+    def _finish(self, last: CutTiming) -> float:
+        """After the last pass x pulls out to the clearance radius and z runs back to the
+        cycle's start, inside the compensated cycle: z straight from the helix's exit while
+        x heads out as between passes and turns back down to the clearance radius as late as
+        it can, where x is out of the stock before z is back over it; else x straight to the
+        clearance radius and z from rest once x is out. Returns the cycle time at which both
+        are at rest."""
+        spec, period = self.spec, self.period
+        end = [spec.origin[1] + spec.start_z, 0.0, 0.0]
+        home = self._ramps.reach("z", [float(q[0]) for q in last.stop.at_time(0.0)], end)
+        if home is not None:
+            t_home = last.t_out + math.ceil(home.duration / period - 1e-9) * period
+            down = self._plunge([self.x_clear, 0.0, 0.0], t_home, last.t_out)
+            straight = (last.t_out, _moving(last.t_out, home))
+            grid = np.arange(math.floor(last.t_out / period), round(t_home / period) + 1) * period
+            if down is not None and not self._cuts_stock(self._sample(self.tracks[0] + [down], grid)[0],
+                                                         self._sample(self.tracks[1][:-1] + [straight], grid)[0]):
+                self.tracks[0].append(down)
+                self.tracks[1][-1] = straight
+                last.t_done = last.t_out + last.stop.duration
+                return t_home
+        last.retract = self._ramps.reach("x", [float(q[0]) for q in last.retract.at_time(0.0)],
+                                         [self.x_clear, 0.0, 0.0])
+        self.tracks[0][-1] = (last.t_out, _moving(last.t_out, last.retract))
+        t_go, z_from = self._at_rest_clear(last)
+        home = self._ramps.reach("z", [z_from, 0.0, 0.0], end)
+        self.tracks[1].append((t_go, _moving(t_go, home)))
+        t_done = max(last.t_end, t_go + home.duration)
+        last.t_done = min(last.t_end, t_go)  # over once z heads back, x maybe still on its way out
+        return t_done
+
+    def _cuts_stock(self, x: np.ndarray, z: np.ndarray) -> bool:
+        """Whether the tip at axis positions x, z is ever inside the stock over the thread."""
+        spec, s = self.spec, self.spec.direction
+        x0, z0 = spec.origin
+        depth = spec.radial * (x - x0 - spec.surface(z - z0))
+        over_stock = (s * (z - z0) >= 0.0) & (s * (z - z0) <= s * spec.end_z)
+        return bool(np.any(over_stock & (depth > 0.0)))
 
     def _at_rest_clear(self, last: CutTiming) -> tuple[float, float]:
         """(servo instant, z) at which z has stopped past the pass ``last`` and x has
@@ -198,11 +271,16 @@ class ThreadCycle:
             fastest = self._ramps.reach("z", z_state, z_target)
             if fastest is None or fastest.duration > t_join - t_go + 1e-12:
                 continue
-            back = self._ramps.reach("z", z_state, z_target, duration=t_join - t_go)
-            if back is None or abs(back.duration - (t_join - t_go)) > 1e-9:
+            t_leave = t_go  # the first approach leaves at the last servo instant it can
+            if not self.cuts:
+                t_leave += math.floor((t_join - t_go - fastest.duration) / self.period + 1e-9) * self.period
+            back = self._ramps.reach("z", z_state, z_target, duration=t_join - t_leave)
+            if back is None or abs(back.duration - (t_join - t_leave)) > 1e-9:
                 continue
-            yield [[plunge], [(t_go, _moving(t_go, back))]]
+            yield [[plunge], [(t_leave, _moving(t_leave, back))]]
             late = (t_go, z_state, fastest)
+        if self.cuts:
+            yield from ([[plunge], z] for z in self._through_face(starts[0], z_target, t_join))
         if late is None or late[1][1] != 0.0:
             return
         t_go, z_state, _ = late
@@ -222,6 +300,23 @@ class ThreadCycle:
                 continue
             yield [[plunge], [(t_leave, _moving(t_leave, there)), (t_turn, _moving(t_turn, onto))]]
 
+    def _through_face(self, start: tuple[float, list[float]], z_target: list[float], t_join: float):
+        """z returns from the helix's exit that cross the face as soon as they can, at
+        THROUGH_SPEEDS outwards, and turn in front of it onto the join at t_join: the
+        longest z can spend clear of the face, for x to plunge on the deepest passes."""
+        spec = self.spec
+        t_go, z_state = start
+        for speed in THROUGH_SPEEDS:
+            face = [spec.origin[1] - spec.direction * THROUGH_FRONT, -spec.direction * speed, 0.0]
+            there = self._ramps.reach("z", z_state, face)
+            if there is None or t_go + there.duration >= t_join:
+                continue
+            t_face = t_go + there.duration
+            onto = self._ramps.reach("z", face, z_target, duration=t_join - t_face)
+            if onto is None or abs(onto.duration - (t_join - t_face)) > 1e-9:
+                continue
+            yield [(t_go, _moving(t_go, there)), (t_face, _moving(t_face, onto))]
+
     def _plunge(self, x_target: list[float], t_join: float, x_free: float) -> Stretch | None:
         """x onto the helix state x_target at t_join. The first pass plunges from rest at
         the clearance radius; later ones turn back on the way out (the retract heads for
@@ -229,7 +324,7 @@ class ThreadCycle:
         time, so that x is out of the groove as long as it can be."""
         period = self.period
         if not self.cuts:
-            plunge = self._ramps.reach("x", [self.x_clear, 0.0, 0.0], x_target)
+            plunge = self._ramps.reach("x", [self.start[0], 0.0, 0.0], x_target)
             if plunge is None or t_join - plunge.duration < x_free - 1e-12:
                 return None
             return (t_join - plunge.duration, _moving(t_join - plunge.duration, plunge))

@@ -59,9 +59,11 @@ def plan_thread(builder: PlanBuilder, spec: ThreadSpec, servo_period: float = 1e
                 compensate: bool = True) -> list[dict]:
     """Append the whole thread cycle to the builder; returns one JSON-ready dict per pass.
 
-    Spindle to speed; the tool to the cycle start (clearance radius, start_z; from wherever
-    it is, clear of the stock); every pass and start as one ThreadCycle (drive-compensated
-    unless `compensate` is False); finally back to the cycle start. Events: "thread_pass"
+    Spindle to speed; every pass and start as one ThreadCycle (drive-compensated unless
+    `compensate` is False), from where the tool stands if that is in front of the face and
+    outside the clearance radius (the first pass runs straight onto its helix), else from
+    the cycle start (clearance radius, start_z; a rapid from wherever the tool is, clear of
+    the stock); it ends at the cycle start. Events: "thread_pass"
     as each pass's air path begins, "sync" where it is on its helix.
 
     Raises:
@@ -74,13 +76,21 @@ def plan_thread(builder: PlanBuilder, spec: ThreadSpec, servo_period: float = 1e
     drive = DriveModel(machine, servo_period, joints=JOINTS) if compensate else None
     spindle = builder.timelines[SPINDLE]
     builder.spindle(spec.spindle_speed)
-    builder.rapid({"x": x_origin + spec.clear_radius, "z": z_origin + spec.start_z})
-    # the cycle begins once the spindle turns at speed and the axes have settled; its
-    # first pass joins the helix no sooner than SPINDLE_SETTLE after the spindle's ramp
-    t_ready = max(builder.end_time(list(JOINTS)) + SETTLE_TIME, builder.spindle_ready)
-    t0 = math.ceil(t_ready / servo_period - 1e-9) * servo_period
-    cycle = ThreadCycle(spec, machine, servo_period, spindle.position_at(t0), drive,
-                        settled=builder.spindle_ready + SPINDLE_SETTLE - t0)
+    start = (builder.position("x"), builder.position("z"))
+    x_clear = x_origin + spec.clear_radius
+    if spec.direction * (start[1] - z_origin) >= 0.0 or spec.radial * (start[0] - x_clear) > 0.0:
+        # not in the air in front of the face and outside the clearance radius: the cycle
+        # starts at the clearance radius and start_z
+        builder.rapid({"x": x_clear, "z": z_origin + spec.start_z})
+        start = None
+    # the cycle begins once the axes have settled, at rest (in front of the face); its
+    # first pass joins the helix no sooner than SPINDLE_SETTLE after the spindle's ramp,
+    # and leaves for it at the last instant it can
+    t0 = math.ceil((builder.end_time(list(JOINTS)) + SETTLE_TIME) / servo_period - 1e-9) * servo_period
+    t_speed = max(t0, builder.spindle_ready)  # the spindle's angle, as if it turned at speed since t0
+    theta0 = spindle.position_at(t_speed) - spec.spindle_speed * (t_speed - t0)
+    cycle = ThreadCycle(spec, machine, servo_period, theta0, drive,
+                        settled=builder.spindle_ready + SPINDLE_SETTLE - t0, start=start)
     for j, joint in enumerate(JOINTS):
         builder.timelines[joint].add(Piece(t0, cycle.duration, cycle.sampler(j)), cycle.end[j])
     report = []

@@ -34,7 +34,7 @@ def plan_turn(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin:
     for move in rough.moves:
         target = axes_of(move.z, move.x)
         check_travel(machine, target, "turn.profile")
-        start = builder.end_time()
+        start = builder.free_from(builder.moving(target) if move.kind == "rapid" else list(target))  # as it starts
         if move.kind == "rapid":
             builder.rapid(target)
             continue

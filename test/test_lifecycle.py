@@ -86,7 +86,7 @@ def test_configure_cleanup_and_shutdown_without_autostart(tmp_path):
         assert client.bridge_transition("configure") == "inactive"  # machine loaded, drives off
         session.spin_until(lambda: session.recorder.feedback_ns > 0, 30, "no joint_states while inactive")
         assert client.bridge_transition("activate") == "active"
-        session.spin_until(session.recorder.ready, 30, "the planner did not come up")
+        session.spin_until(session.ready, 30, "the planner did not come up")
         session.submit(move_job("first", SHORT))
         assert session.wait("first", 60)["state"] == "succeeded"
         assert client.bridge_transition("deactivate") == "inactive"

@@ -10,6 +10,7 @@ import yaml
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
+from cnc_planner.runner import Session
 from support import JOBS, cnc, load_report
 
 JOB = JOBS / "move_mill3.yaml"
@@ -108,6 +109,19 @@ def test_rejected_job_gets_a_report_and_moves_nothing(tmp_path):
     topics = read_bag(tmp_path / "run" / "bag")
     assert "/cnc/joint_trajectory" not in topics
     assert "Traceback" not in result.stderr
+
+
+def test_a_second_run_in_the_same_domain_is_refused_before_it_sends_a_goal(tmp_path):
+    """Two runs in one domain and namespace would take each other's goals: a mill3 job went
+    to another run's lathe planner once, and was rejected there for the wrong machine."""
+    with Session("lathe", tmp_path / "first") as first:
+        result = cnc("cnc-run", JOB, "--out", tmp_path / "second")
+        assert result.returncode != 0
+        assert "already run at /cnc in ROS_DOMAIN_ID" in result.stderr
+        assert "Traceback" not in result.stderr
+        heard = first.recorder.planner_heartbeats
+        first.spin_until(lambda: first.recorder.planner_heartbeats >= heard + 2, 30, "the planner went quiet")
+        assert first.final_status("move-mill3-demo") is None  # the goal was never sent
 
 
 def test_missing_job_file_is_one_line(tmp_path):

@@ -12,6 +12,7 @@ INJECT_FAULT = "inject_fault"  # bridge fault injection (std_msgs/String, JSON)
 ALARM_RESET = "alarm_reset"  # acknowledges a latched bridge alarm (std_msgs/String: who/why)
 CLOCK = "/clock"
 BRIDGE_NODE = "cnc_servo_bridge"  # its lifecycle services: <namespace>/cnc_servo_bridge/change_state, get_state
+PID_KEY = "pid"  # in both nodes' diagnostics: the process, so a run can tell its own nodes from others
 DRIVES_KEY = "drives"  # in the bridge's diagnostics: DRIVES_ON (lifecycle active) or DRIVES_OFF
 DRIVES_ON, DRIVES_OFF = "enabled", "disabled"
 RECORDED_UNTIL = "recorded_until"  # recorder -> simulated bridge: stamp of the last joint_states

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import os
 import sys
 from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -188,7 +189,8 @@ class PlannerNode(Node):
         status = DiagnosticStatus(
             level=DiagnosticStatus.OK, name="cnc_planner: executive", hardware_id=self.get_namespace(),
             message=f"running {active.job_id}" if active else "idle",
-            values=[KeyValue(key="queued", value=str(len(self.executive.queue))),
+            values=[KeyValue(key=topics.PID_KEY, value=str(os.getpid())),
+                    KeyValue(key="queued", value=str(len(self.executive.queue))),
                     KeyValue(key="machine", value=self.executive.machine.name)])
         msg = DiagnosticArray(status=[status])
         msg.header.stamp = Time(sec=self.latest_feedback_ns // NS, nanosec=self.latest_feedback_ns % NS)

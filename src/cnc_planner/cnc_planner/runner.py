@@ -100,6 +100,7 @@ class Recorder(Node):
         self.sim_ns = 0
         self.feedback_ns = 0  # stamp of the last joint_states recorded
         self.planner_heartbeats = 0  # planner diagnostics received (it is up and talking)
+        self.pids_heard: set[int] = set()  # the processes whose diagnostics name this namespace
         self.goal_pub = self.create_publisher(String, topics.JOB_GOAL, qos.JOB_GOAL)
         # Backpressure: a simulated bridge does not run more than a bounded window ahead of this.
         self.ack_pub = self.create_publisher(Time, topics.RECORDED_UNTIL, qos.RECORDED_UNTIL)
@@ -124,6 +125,8 @@ class Recorder(Node):
             elif topic == "/diagnostics":
                 msg = deserialize_message(data, message_class(RECORDED["/diagnostics"]))
                 self.planner_heartbeats += any(s.name.startswith("cnc_planner") for s in msg.status)
+                self.pids_heard.update(int(kv.value) for s in msg.status if s.hardware_id == self.get_namespace()
+                                       for kv in s.values if kv.key == topics.PID_KEY)
         return write
 
     def acknowledge(self) -> None:
@@ -136,15 +139,17 @@ class Recorder(Node):
             self.acked_ns = self.feedback_ns
             self.ack_pub.publish(Time(sec=self.feedback_ns // NS, nanosec=self.feedback_ns % NS))
 
-    def ready(self) -> bool:
-        """Planner listening for goals and talking, and bridge publishing feedback.
+    def ready(self, own: set[int]) -> bool:
+        """Planner listening for goals and talking, and bridge publishing feedback, both
+        heard from the processes ``own`` (not another run's nodes in the same domain).
 
         The goal publisher seeing the planner's subscription is not enough: the planner's
         side of that match may come later, and a volatile reader drops what was sent before
         it matched (a goal lost on a loaded host: the planner stayed idle and cnc-run waited
         out its timeout). The planner's first heartbeat, heard here, shows both participants
         have discovered each other's endpoints."""
-        return self.goal_pub.get_subscription_count() >= 2 and self.feedback_ns > 0 and self.planner_heartbeats > 0
+        return (own <= self.pids_heard and self.goal_pub.get_subscription_count() >= 2 and self.feedback_ns > 0
+                and self.planner_heartbeats > 0)
 
 
 class Session:
@@ -184,7 +189,12 @@ class Session:
 
     def __enter__(self) -> "Session":
         try:
-            self.spin_until(self.recorder.ready, 30.0, "the planner and bridge did not come up")
+            self.spin_until(self.ready, 30.0, "the planner and bridge did not come up")
+            if others := sorted(self.recorder.pids_heard - self.own_pids()):
+                # Two runs in one domain and namespace would take each other's goals.
+                raise RunError(f"other nodes (pid {', '.join(map(str, others))}) already run at "
+                               f"{self.recorder.get_namespace()} in ROS_DOMAIN_ID {self.env.get('ROS_DOMAIN_ID', '0')} "
+                               f"(another cnc-run?): set ROS_DOMAIN_ID to a free domain")
         except RunError:
             self.close()
             raise
@@ -192,6 +202,13 @@ class Session:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+    def own_pids(self) -> set[int]:
+        return {proc.pid for proc in self.procs.values()}
+
+    def ready(self) -> bool:
+        """This session's planner and bridge are up and talking (see Recorder.ready)."""
+        return self.recorder.ready(self.own_pids())
 
     def kill(self, name: str) -> None:
         """Kill a node the hard way (SIGKILL), as a crash would."""

@@ -15,6 +15,7 @@ clock.
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 
@@ -264,7 +265,8 @@ class BridgeNode(LifecycleNode):
             level=DiagnosticStatus.ERROR if alarm else DiagnosticStatus.OK if enabled else DiagnosticStatus.WARN,
             name="cnc_servo_bridge: drives", hardware_id=self.get_namespace(),
             message=alarm or ("ok" if enabled else DRIVES_DISABLED),
-            values=[KeyValue(key=topics.DRIVES_KEY, value=topics.DRIVES_ON if enabled else topics.DRIVES_OFF),
+            values=[KeyValue(key=topics.PID_KEY, value=str(os.getpid())),
+                    KeyValue(key=topics.DRIVES_KEY, value=topics.DRIVES_ON if enabled else topics.DRIVES_OFF),
                     KeyValue(key="buffer_s", value=f"{self.loop.buffer.level_s(self.t_ns):.3f}")]
             + [KeyValue(key=f"max_following_error.{j}", value=f"{e:.9f}")
                for j, e in zip(self.joints, self.loop.max_following_error)],

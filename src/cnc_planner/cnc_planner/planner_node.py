@@ -12,6 +12,8 @@ from rclpy.callback_groups import CallbackGroup
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.time import Time as RosTime
+from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -38,7 +40,7 @@ PARAMETERS = {
     "planning_lookahead": Param(1.0, "setpoints kept ahead of the feedback while a goal is planned beside the "
                                      "running job (planning slows the stream's thread), and the longest a "
                                      "cancel then waits", "s", (0.05, 5.0)),
-    "feedback_period": Param(0.01, "wall time between takes of the latest joint_states (progress, the stream's "
+    "feedback_period": Param(0.02, "wall time between takes of the latest joint_states (progress, the stream's "
                                    "top-up, the end of the job, the feedback watchdog); the bridge publishes "
                                    "them at 1 kHz, and a Python wake-up per message cost 0.35 of a CPU", "s",
                              (0.001, 0.1),
@@ -110,8 +112,9 @@ class PlannerNode(Node):
         # latest every feedback_period of wall time, which is all progress, the stream's
         # lookahead and the watchdog need. The job's end is exact regardless: its status
         # carries the stream's own end time and cycle time, not the feedback's.
+        self.polled = Polled()
         self.feedback_sub = self.create_subscription(JointState, topics.JOINT_STATES, lambda _: None, qos.LATEST,
-                                                     callback_group=Polled())
+                                                     callback_group=self.polled)
         self.create_subscription(DiagnosticArray, topics.DIAGNOSTICS, self.on_diagnostics, qos.DIAGNOSTICS)
         self.latest_feedback_ns = 0
         self.wall = Clock(clock_type=ClockType.STEADY_TIME)
@@ -152,6 +155,7 @@ class PlannerNode(Node):
         """Take the latest feedback, admit what intake has prepared, and keep the running
         job's setpoints ahead of the bridge's clock (also while feedback is slow to arrive:
         real time under CPU load)."""
+        self.take_clock()
         msg = take_latest(self.feedback_sub)
         if msg is not None:
             self.on_feedback(msg)
@@ -160,6 +164,16 @@ class PlannerNode(Node):
         if self.latest_feedback_ns and self.trajectory_pub.get_subscription_count():
             self.advance(planning=bool(self.preparing))
         self.watch_feedback()
+
+    def take_clock(self) -> None:
+        """In simulation, the latest /clock, taken like the feedback: rclpy's time source
+        subscribes to it (use_sim_time) with a callback per message, a wake-up per 10 steps
+        of a bridge running many times faster than the wall clock."""
+        for sub in self.subscriptions:
+            if sub.msg_type is ClockMsg:
+                sub.callback_group = self.polled  # the time source's own subscription, taken here
+                if (msg := take_latest(sub)) is not None:
+                    self.get_clock().set_ros_time_override(RosTime.from_msg(msg.clock))
 
     def publish(self, out: Output) -> None:
         # The bridge's clock now, not at the feedback this output was made for (real time:
@@ -219,6 +233,9 @@ class PlannerNode(Node):
                 if self.executive.active is None:
                     # The job it hit has ended (aborted): acknowledge, so the next one may run.
                     self.reset_pub.publish(String(data="cnc_planner"))
+            # The bridge reports every 100 steps: in simulation, where it waits for setpoints,
+            # that is the cue to take its feedback and stream on, sooner than the wall timer.
+            self.poll()
 
     def heartbeat(self) -> None:
         """Tell the cell the planner is up, and what it is doing."""

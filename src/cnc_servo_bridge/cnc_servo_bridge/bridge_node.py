@@ -56,7 +56,7 @@ PARAMETERS = {
     "start_position": Param(Parameter.Type.DOUBLE_ARRAY, "where the axes stand at configure, one value "
                                                          "per joint in the machine's order (unset: its home)",
                             "m or rad", at_configure=True),
-    "wake_period": Param(0.01, "real time: wall time between the servo loop's wake-ups; each takes the "
+    "wake_period": Param(0.02, "real time: wall time between the servo loop's wake-ups; each takes the "
                                "steps the wall clock has passed and publishes every sample, stamped at its "
                                "own step (a Python wake-up per 1 ms step cost 0.45 of a CPU)", "s",
                          (1e-4, 0.05), at_configure=True),

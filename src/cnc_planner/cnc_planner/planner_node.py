@@ -147,14 +147,16 @@ class PlannerNode(Node):
         """The bridge's clock as read here now (real time: the wall; simulation: /clock)."""
         return self.get_clock().now().nanoseconds
 
-    def advance(self, planning: bool) -> None:
-        """Tick the executive on the feedback's time, setpoints kept ahead of the clock too."""
-        self.publish(self.executive.tick(self.now_ns(), planning=planning, clock_ns=self.clock_ns()))
+    def advance(self, planning: bool, bridge_ns: int = 0) -> None:
+        """Tick the executive on the feedback's time, setpoints kept ahead of the clock too
+        (and of ``bridge_ns``, the bridge's time in a report that prompted this tick)."""
+        self.publish(self.executive.tick(self.now_ns(), planning=planning,
+                                         clock_ns=max(self.clock_ns(), bridge_ns)))
 
-    def poll(self) -> None:
+    def poll(self, bridge_ns: int = 0) -> None:
         """Take the latest feedback, admit what intake has prepared, and keep the running
         job's setpoints ahead of the bridge's clock (also while feedback is slow to arrive:
-        real time under CPU load)."""
+        real time under CPU load). ``bridge_ns``: see advance."""
         self.take_clock()
         msg = take_latest(self.feedback_sub)
         if msg is not None:
@@ -162,7 +164,7 @@ class PlannerNode(Node):
         else:
             self.admit_prepared()
         if self.latest_feedback_ns and self.trajectory_pub.get_subscription_count():
-            self.advance(planning=bool(self.preparing))
+            self.advance(planning=bool(self.preparing), bridge_ns=bridge_ns)
         self.watch_feedback()
 
     def take_clock(self) -> None:
@@ -178,6 +180,8 @@ class PlannerNode(Node):
     def publish(self, out: Output) -> None:
         # The bridge's clock now, not at the feedback this output was made for (real time:
         # the wall; simulation: /clock, both the node's clock), so a late start is re-timed.
+        # /clock taken afresh: the tick that made ``out`` may have waited for planning.
+        self.take_clock()
         self.executive.retime(out, max(self.latest_feedback_ns, self.clock_ns()))
         for chunk in out.chunks:
             self.trajectory_pub.publish(chunk_to_msg(chunk))
@@ -222,6 +226,12 @@ class PlannerNode(Node):
             mine = status.hardware_id == self.get_namespace()  # not another machine's bridge
             if not (mine and status.name.startswith("cnc_servo_bridge")):
                 continue
+            # The bridge reports every 100 steps: in simulation, where it waits for setpoints,
+            # that is the cue to take its feedback and stream on, sooner than the wall timer,
+            # ahead of the report's own stamp (best-effort feedback may lag it). Taken before
+            # the report is acted on, as the feedback published before it: after an abort
+            # the next job starts from feedback that comes later (the axes standing still).
+            self.poll(bridge_ns=stamp)
             self.executive.bridge_report(status.message if status.level >= DiagnosticStatus.ERROR else "")
             if status.level >= DiagnosticStatus.ERROR:
                 # The bridge stops the drives itself; the job ends here, unless the alarm
@@ -233,9 +243,6 @@ class PlannerNode(Node):
                 if self.executive.active is None:
                     # The job it hit has ended (aborted): acknowledge, so the next one may run.
                     self.reset_pub.publish(String(data="cnc_planner"))
-            # The bridge reports every 100 steps: in simulation, where it waits for setpoints,
-            # that is the cue to take its feedback and stream on, sooner than the wall timer.
-            self.poll()
 
     def heartbeat(self) -> None:
         """Tell the cell the planner is up, and what it is doing."""

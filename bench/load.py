@@ -7,16 +7,21 @@
     planner on sim time, everything recorded): machine time / wall time, peak RSS
     (VmHWM) of the planner and bridge processes polled while they run, chunks lost;
 (c) chunk lead on loopback, from the same recordings;
-(d) peak Python heap (tracemalloc) of plan_job versus job length.
+(d) peak Python heap (tracemalloc) of plan_job versus job length;
+(e) CPU share of the bridge (simulation:=false) and the planner in real time at 1x, over a
+    shipped mill job and a shipped lathe job, beside the figures before issue 27.
 Run from the workspace root (ROS sourced, as for the tests):  python bench/load.py
 (a few minutes). Writes the table to bench/results/load.txt as well; with --over-topics
-only (b) and (c) are run again and replaced in it, with --planning only (a).
+only (b) and (c) are run again and replaced in it, with --planning only (a), with
+--real-time only (e).
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import signal
+import subprocess
 import sys
 import tempfile
 import time
@@ -193,6 +198,103 @@ def simulate(job_file: str, out: Path, doc: dict | None = None) -> dict:
             "cpu": {name: (cpu[name] - cpu0[name]) / sim for name in cpu}, "load": os.getloadavg()[0]}
 
 
+REAL_TIME_JOBS = ("move_mill3.yaml", "lathe_feed_vibration.yaml")  # one per shipped machine kind
+REAL_TIME_BEFORE = RESULTS / "real_time_before_issue27.txt"  # (e) as measured on main before issue 27
+
+
+def real_time_share(job_file: str, out: Path, recorded: bool) -> dict:
+    """One shipped job in real time at 1x: bridge (simulation:=false) and planner started
+    as cnc-run starts them, the job sent as cnc-submit sends it (CncClient) or, ``recorded``,
+    as cnc-run and the real-time tests run it (this process recording every topic). Each
+    node's CPU time (user + system, /proc) over the wall time from submit to final status."""
+    import rclpy
+    from cnc_msgs_py.client import CncClient
+    from cnc_planner.runner import Session, local_dds_env, node_command
+
+    doc = load_job_file(JOBS / job_file)
+    env = local_dds_env(int(os.environ.get("ROS_DOMAIN_ID") or 0) or 42)
+    if recorded:
+        with Session(doc["machine"], out / "bag", env=env, simulation=False) as session:
+            return _share(doc, session.procs, lambda: session.submit(json.dumps(doc)),
+                          lambda: session.wait(job_id_of(doc), 120))
+    procs = {name: subprocess.Popen(node_command(module, "/cnc", {"machine": doc["machine"], **params}), env=env)
+             for name, module, params in (("bridge", "cnc_servo_bridge.bridge_node", {"simulation": False}),
+                                          ("planner", "cnc_planner.planner_node", {}))}
+    os.environ.update({k: env[k] for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE") if k in env})
+    rclpy.init()
+    node = rclpy.create_node("cnc_bench_submit")
+    client = CncClient(node)
+    try:
+        client.wait_for_planner(30)
+        return _share(doc, procs, lambda: client.submit(doc), lambda: client.wait(job_id_of(doc), 120))
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+        for proc in procs.values():
+            proc.send_signal(signal.SIGINT)
+            proc.wait(10)
+
+
+def _share(doc: dict, procs: dict, submit, wait) -> dict:
+    """CPU share of each process (and of this one) from ``submit`` until ``wait`` returns."""
+    wall0, cpu0, own0 = time.monotonic(), {name: cpu_s(p.pid) for name, p in procs.items()}, time.process_time()
+    submit()
+    status = wait()
+    wall = time.monotonic() - wall0
+    share = {name: (cpu_s(p.pid) - cpu0[name]) / wall for name, p in procs.items()}
+    share["this"] = (time.process_time() - own0) / wall
+    return {"state": status["state"], "wall_s": wall, "share": share, "load": os.getloadavg()[0]}
+
+
+def real_time_lines(runs: list[dict]) -> list[str]:
+    """Table (e), with the figures kept from before issue 27 beside the new ones."""
+    before = {}
+    if REAL_TIME_BEFORE.exists():
+        for line in REAL_TIME_BEFORE.read_text().splitlines():
+            if line.startswith("#") or not line.strip():
+                continue
+            job, how, *numbers = line.split()
+            before[job, how] = [float(n) for n in numbers]
+    lines = ["(e) CPU share in real time at 1x (bridge simulation:=false, planner): CPU s / wall s of the job",
+             f"{'job':<27}{'run as':<12}{'state':>10}{'wall s':>8}{'bridge':>8}{'planner':>9}{'sender':>8}"
+             f"{'load avg':>9}  {'before: bridge':>14}{'planner':>8}", "-" * 113]
+    for r in runs:
+        old = before.get((r["job"], r["how"]))
+        lines.append(f"{r['job']:<27}{r['how']:<12}{r['state']:>10}{r['wall_s']:>8.2f}{r['share']['bridge']:>8.3f}"
+                     f"{r['share']['planner']:>9.3f}{r['share']['this']:>8.3f}{r['load']:>9.1f}  "
+                     + (f"{old[0]:>14.3f}{old[1]:>8.3f}" if old else f"{'-':>14}{'-':>8}"))
+    return lines + ["  run as cnc-submit: the job sent by a CncClient, nothing else listening (as the issue measured);",
+                    "  cnc-run: this process records every topic as well, as cnc-run and the real-time tests do;",
+                    "  sender: this process (client, or recorder). Goals: bridge <= 0.15 of a CPU, planner <= 0.10."]
+
+
+def real_time_runs() -> list[dict]:
+    runs = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for i, job in enumerate(REAL_TIME_JOBS):
+            for how in ("cnc-submit", "cnc-run"):
+                run = real_time_share(job, Path(tmp) / f"{i}{how}", recorded=how == "cnc-run")
+                runs.append({"job": job, "how": how, **run})
+                print(f"  {job} {how}: {run}", flush=True)
+    return runs
+
+
+def real_time_only() -> int:
+    """--real-time: rerun (e) only and replace it in load.txt."""
+    text = (RESULTS / "load.txt").read_text()
+    new = "\n".join(real_time_lines(real_time_runs())) + "\n"
+    if "(e) CPU share" in text:
+        start = text.index("(e) CPU share")
+        end = text.index("\n\n", start) + 1
+        text = text[:start] + new + text[end:]
+    else:
+        start = text.index("Notes (")
+        text = text[:start] + new + "\n" + text[start:]
+    print(text)
+    write_result("load.txt", text)
+    return 0
+
+
 def feedback_continuity(feedback_t: np.ndarray, period_s: float = 0.001) -> dict:
     """joint_states samples missing from a recording between its first and last, and the
     longest step between two recorded stamps (ms)."""
@@ -286,12 +388,15 @@ def main() -> int:
     sims = simulations()
     print("(d) memory", flush=True)
     mem_rows = memory_rows()
+    print("(e) real time", flush=True)
+    real_time = real_time_runs()
 
     lines += planning_section(plan_rows, notes)
     lines += ["", *topic_lines(sims)]
     lines += ["", "(d) peak memory of plan_job versus job length (tracemalloc peak, Python heap)",
               f"{'job':<22}{'plan s':>10}{'peak MiB':>10}", "-" * 42]
     lines += [f"{n:<22}{d:>10.2f}{m:>10.1f}" for n, d, m in mem_rows]
+    lines += ["", *real_time_lines(real_time)]
     lines += ["", NOTES.format(cpus=os.cpu_count())]
     before = RESULTS / "load_before_issue18.txt"
     if before.exists():  # the figures before the speed work (issue 18), side by side
@@ -351,5 +456,7 @@ if __name__ == "__main__":
     only = parser.add_mutually_exclusive_group()
     only.add_argument("--planning", action="store_true", help="rerun (a), planning speed, only")
     only.add_argument("--over-topics", action="store_true", help="rerun (b) and (c), over topics, only")
+    only.add_argument("--real-time", action="store_true", help="rerun (e), CPU share in real time, only")
     options = parser.parse_args()
-    sys.exit(rerun_planning() if options.planning else over_topics_only() if options.over_topics else main())
+    sys.exit(rerun_planning() if options.planning else over_topics_only() if options.over_topics
+             else real_time_only() if options.real_time else main())

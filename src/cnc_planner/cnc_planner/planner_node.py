@@ -9,9 +9,12 @@ from concurrent.futures import Future, ThreadPoolExecutor
 
 from builtin_interfaces.msg import Duration, Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.callback_groups import CallbackGroup
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.time import Time as RosTime
+from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -27,7 +30,6 @@ from cnc_planner.executive import Executive, Output, Settings
 from cnc_planner.streaming import Chunk
 
 
-TOP_UP_PERIOD = 0.02  # s of wall time between top-ups of the stream that no feedback prompted
 PARAMETERS = {
     "machine": Param("mill3", "machine description config/machines/<name>.yaml (or a path), the one "
                               "the bridge drives", read_only=True),
@@ -39,6 +41,11 @@ PARAMETERS = {
     "planning_lookahead": Param(1.0, "setpoints kept ahead of the feedback while a goal is planned beside the "
                                      "running job (planning slows the stream's thread), and the longest a "
                                      "cancel then waits", "s", (0.05, 5.0)),
+    "feedback_period": Param(0.02, "wall time between takes of the latest joint_states (progress, the stream's "
+                                   "top-up, the end of the job, the feedback watchdog); the bridge publishes "
+                                   "them at 1 kHz, and a Python wake-up per message cost 0.35 of a CPU", "s",
+                             (0.001, 0.1),
+                             read_only=True),
     "feedback_timeout": Param(2.0, "wall time without joint_states before a running job aborts", "s",
                               (0.1, 60.0)),
 }
@@ -55,6 +62,30 @@ def chunk_to_msg(chunk: Chunk) -> JointTrajectory:
             accelerations=chunk.accelerations[i].tolist(),
             time_from_start=Duration(sec=offset // NS, nanosec=offset % NS)))
     return msg
+
+
+class Polled(CallbackGroup):
+    """For a subscription the node takes from itself, on a timer: never in the executor's
+    wait set, so messages arriving faster than they are needed wake nothing."""
+
+    def can_execute(self, entity) -> bool:
+        return False
+
+    def beginning_execution(self, entity) -> bool:
+        return False
+
+    def ending_execution(self, entity) -> None:
+        pass
+
+
+def take_latest(subscription):
+    """The newest message waiting in a polled subscription (None if none): its queue keeps
+    only the latest (qos.LATEST), and whatever else is queued is older."""
+    latest = None
+    with subscription.handle:
+        while (taken := subscription.handle.take_message(subscription.msg_type, subscription.raw)) is not None:
+            latest = taken[0]
+    return latest
 
 
 class PlannerNode(Node):
@@ -78,20 +109,24 @@ class PlannerNode(Node):
         self.reset_pub = self.create_publisher(String, topics.ALARM_RESET, qos.ALARM_RESET)
         self.create_subscription(String, topics.JOB_GOAL, self.on_goal, qos.JOB_GOAL)
         self.create_subscription(String, topics.JOB_CANCEL, self.on_cancel, qos.JOB_CANCEL)
-        self.create_subscription(JointState, topics.JOINT_STATES, self.on_feedback, qos.LATEST)
+        # joint_states come at 1 kHz (many times that in simulation); the planner takes the
+        # latest every feedback_period of wall time, which is all progress, the stream's
+        # lookahead and the watchdog need. The job's end is exact regardless: its status
+        # carries the stream's own end time and cycle time, not the feedback's.
+        self.polled = Polled()
+        self.feedback_sub = self.create_subscription(JointState, topics.JOINT_STATES, lambda _: None, qos.LATEST,
+                                                     callback_group=self.polled)
         self.create_subscription(DiagnosticArray, topics.DIAGNOSTICS, self.on_diagnostics, qos.DIAGNOSTICS)
         self.latest_feedback_ns = 0
         self.wall = Clock(clock_type=ClockType.STEADY_TIME)
         self.last_feedback_wall = self.wall.now()
-        self.create_timer(0.1, self.watch_feedback, clock=self.wall)
         self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS)
         self.create_timer(1.0, self.heartbeat, clock=self.wall)
         # Goals are validated and planned on a thread of their own, so that a running job's
         # stream never waits for the next job's planning; they are admitted in arrival order.
         self.intake = ThreadPoolExecutor(max_workers=1, thread_name_prefix="cnc_planner_intake")
         self.preparing: deque[Future] = deque()
-        self.create_timer(0.02, self.admit_prepared, clock=self.wall)
-        self.create_timer(TOP_UP_PERIOD, self.top_up, clock=self.wall)
+        self.create_timer(value(self, "feedback_period"), self.poll, clock=self.wall)
         self.get_logger().info(f"planning for machine '{machine.name}' joints {self.joints}")
 
     def on_parameters_set(self, parameters: list[Parameter]) -> None:
@@ -113,19 +148,41 @@ class PlannerNode(Node):
         """The bridge's clock as read here now (real time: the wall; simulation: /clock)."""
         return self.get_clock().now().nanoseconds
 
-    def advance(self, planning: bool) -> None:
-        """Tick the executive on the feedback's time, setpoints kept ahead of the clock too."""
-        self.publish(self.executive.tick(self.now_ns(), planning=planning, clock_ns=self.clock_ns()))
+    def advance(self, planning: bool, bridge_ns: int = 0) -> None:
+        """Tick the executive on the feedback's time, setpoints kept ahead of the clock too
+        (and of ``bridge_ns``, the bridge's time in a report that prompted this tick)."""
+        self.publish(self.executive.tick(self.now_ns(), planning=planning,
+                                         clock_ns=max(self.clock_ns(), bridge_ns)))
 
-    def top_up(self) -> None:
-        """Keep the running job's setpoints ahead of the bridge's clock even while its
-        feedback is slow to arrive (real time under CPU load)."""
+    def poll(self, bridge_ns: int = 0) -> None:
+        """Take the latest feedback, admit what intake has prepared, and keep the running
+        job's setpoints ahead of the bridge's clock (also while feedback is slow to arrive:
+        real time under CPU load). ``bridge_ns``: see advance."""
+        self.take_clock()
+        msg = take_latest(self.feedback_sub)
+        if msg is not None:
+            self.on_feedback(msg)
+        else:
+            self.admit_prepared()
         if self.latest_feedback_ns and self.trajectory_pub.get_subscription_count():
-            self.advance(planning=bool(self.preparing))
+            self.advance(planning=bool(self.preparing), bridge_ns=bridge_ns)
+        self.watch_feedback()
+
+    def take_clock(self) -> None:
+        """In simulation, the latest /clock, taken like the feedback: rclpy's time source
+        subscribes to it (use_sim_time) with a callback per message, a wake-up per 10 steps
+        of a bridge running many times faster than the wall clock."""
+        for sub in self.subscriptions:
+            if sub.msg_type is ClockMsg:
+                sub.callback_group = self.polled  # the time source's own subscription, taken here
+                if (msg := take_latest(sub)) is not None:
+                    self.get_clock().set_ros_time_override(RosTime.from_msg(msg.clock))
 
     def publish(self, out: Output) -> None:
         # The bridge's clock now, not at the feedback this output was made for (real time:
         # the wall; simulation: /clock, both the node's clock), so a late start is re-timed.
+        # /clock taken afresh: the tick that made ``out`` may have waited for planning.
+        self.take_clock()
         self.executive.retime(out, max(self.latest_feedback_ns, self.clock_ns()))
         for chunk in out.chunks:
             self.trajectory_pub.publish(chunk_to_msg(chunk))
@@ -156,14 +213,13 @@ class PlannerNode(Node):
         self.advance(planning=bool(self.preparing))
 
     def on_feedback(self, msg: JointState) -> None:
+        """The latest joint_states (taken by ``poll``); nothing starts until a bridge listens
+        for setpoints, which would be lost."""
         self.last_feedback_wall = self.wall.now()
         self.executive.feedback(dict(zip(msg.name, msg.position)), dict(zip(msg.name, msg.velocity)))
         # Not max(): a restarted bridge starts its clock again, and its time is the one that counts.
         self.latest_feedback_ns = msg.header.stamp.sec * NS + msg.header.stamp.nanosec
         self.admit_prepared()
-        if self.trajectory_pub.get_subscription_count() == 0:
-            return  # no bridge listening (yet): setpoints would be lost, so nothing starts
-        self.advance(planning=bool(self.preparing))
 
     def on_diagnostics(self, msg: DiagnosticArray) -> None:
         stamp = msg.header.stamp.sec * NS + msg.header.stamp.nanosec
@@ -171,6 +227,12 @@ class PlannerNode(Node):
             mine = status.hardware_id == self.get_namespace()  # not another machine's bridge
             if not (mine and status.name.startswith("cnc_servo_bridge")):
                 continue
+            # The bridge reports every 100 steps: in simulation, where it waits for setpoints,
+            # that is the cue to take its feedback and stream on, sooner than the wall timer,
+            # ahead of the report's own stamp (best-effort feedback may lag it). Taken before
+            # the report is acted on, as the feedback published before it: after an abort
+            # the next job starts from feedback that comes later (the axes standing still).
+            self.poll(bridge_ns=stamp)
             self.executive.bridge_report(status.message if status.level >= DiagnosticStatus.ERROR else "")
             if status.level >= DiagnosticStatus.ERROR:
                 # The bridge stops the drives itself; the job ends here, unless the alarm

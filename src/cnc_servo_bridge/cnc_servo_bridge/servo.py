@@ -120,16 +120,23 @@ class ServoLoop:
         self.drives.step(*reference)
         return feedback
 
-    def run(self, t_ns: int, steps: int) -> list[Feedback]:
+    def run(self, t_ns: int, steps: int, hold_in_blocks: bool = False) -> list[Feedback]:
         """Advance up to ``steps`` servo periods from time t, as many ``step`` calls would.
 
         Where the buffer holds the reference for several periods (one chunk, no stop
         running) the drive model takes them in one compiled call and the following-error
         and soft-limit checks run over the whole block; the block ends at the first step
         that trips a check, with that step's alarm, as single stepping would end it.
-        Otherwise (a stop, a dry or empty buffer) it takes one ``step``.
+        ``hold_in_blocks``: so does holding at rest with nothing buffered ahead (the
+        reference then stays put: a real-time bridge's idle time, which single steps made
+        its largest cost). Otherwise (a stop, a dry or empty buffer) it takes one ``step``.
         """
         block = None if self._stop is not None or steps < 2 else self.buffer.sample_block(t_ns, steps, self.period_ns)
+        if block is None and hold_in_blocks and self._stop is None and steps >= 2 and self.at_rest:
+            end = self.buffer.end_ns
+            if end is None or end < t_ns:
+                block = tuple(np.broadcast_to(x, (steps, len(self.joints)))
+                              for x in (self.reference[0], np.zeros(len(self.joints)), np.zeros(len(self.joints))))
         if block is None or len(block[0]) < 2:
             return [self.step(t_ns)]
         p, v, a = block

@@ -260,7 +260,7 @@ def twin_loops(chunk_points: int, offset_ns: int = 0, start_ns: int = 5 * MS):
     return loops, len(p)
 
 
-def step_both(single: ServoLoop, block: ServoLoop, steps: int, seed: int, fault=None):
+def step_both(single: ServoLoop, block: ServoLoop, steps: int, seed: int, fault=None, hold_in_blocks=False):
     """Single-step one loop, run the other in random block lengths; returns both feedbacks."""
     rng = np.random.default_rng(seed)
     out_single = [single.step(k * MS) for k in range(steps)]
@@ -269,7 +269,7 @@ def step_both(single: ServoLoop, block: ServoLoop, steps: int, seed: int, fault=
         if fault is not None and k == fault[0]:
             fault[1](block)
         limit = fault[0] - k if fault is not None and k < fault[0] else steps - k
-        taken = block.run(k * MS, int(min(rng.integers(1, 150), limit)))
+        taken = block.run(k * MS, int(min(rng.integers(1, 150), limit)), hold_in_blocks)
         out_block += taken
         k += len(taken)
     return out_single, out_block
@@ -292,6 +292,19 @@ def test_blocks_equal_single_steps_exactly(chunk_points, offset_ns):
     assert np.array_equal(single.max_following_error, block.max_following_error)
     assert all(np.array_equal(x, y) for x, y in zip(single.reference, block.reference))
     assert block.alarm == single.alarm  # off the grid, the last point is passed moving: the same stop
+
+
+def test_holding_at_rest_in_blocks_equals_single_steps_exactly():
+    """A real-time bridge holds in blocks: before a job (its first point held too), after
+    it, and from a start off the grid; the same feedback as stepping one period at a time."""
+    for start_ns, offset_ns in ((0, 0), (300 * MS, 400_000)):
+        (single, block), n = twin_loops(100, offset_ns, start_ns)
+        out_single, out_block = step_both(single, block, start_ns // MS + n + 400, seed=7, hold_in_blocks=True)
+        assert_same(out_single, out_block)
+        assert all(np.array_equal(x, y) for x, y in zip(single.reference, block.reference))
+        assert block.alarm == single.alarm
+    held = block.run(len(out_block) * MS, 100, hold_in_blocks=True)
+    assert len(held) == 100 and block.at_rest
 
 
 def test_a_block_ends_at_the_step_that_trips_and_the_stop_follows_as_single_stepped():

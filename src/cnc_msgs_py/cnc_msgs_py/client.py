@@ -228,24 +228,24 @@ class CncClient:
         """
         from lifecycle_msgs.srv import GetState
 
-        return self._call_bridge(GetState, "get_state", GetState.Request(), timeout).current_state.label
+        return self._call_bridge(GetState, "get_state", GetState.Request(), timeout, resend=True).current_state.label
 
-    # -- internals ----------------------------------------------------------------------
-
-    def _call_bridge(self, service_type: Any, service: str, request: Any, timeout: float) -> Any:
+    def _call_bridge(self, service_type: Any, service: str, request: Any, timeout: float, resend: bool = False) -> Any:
+        """``resend`` a question each second unanswered: Fast DDS drops a response to a reader not yet matched."""
         name = f"{self.namespace}/{topics.BRIDGE_NODE}/{service}"
-        if name not in self._bridge_services:
-            self._bridge_services[name] = self.node.create_client(service_type, name)
-        client = self._bridge_services[name]
+        if (client := self._bridge_services.get(name)) is None:
+            client = self._bridge_services[name] = self.node.create_client(service_type, name)
         deadline = time.monotonic() + timeout
         while not client.service_is_ready():
             if time.monotonic() > deadline:
                 raise CncClientError(f"no bridge answers on {name} (waited {timeout:g} s)")
             self._spin_once(0.05)
-        future = client.call_async(request)
+        future, sent = client.call_async(request), time.monotonic()
         while not future.done():
             if time.monotonic() > deadline:
                 raise CncClientError(f"no answer on {name} within {timeout:g} s")
+            if resend and time.monotonic() - sent > 1.0:
+                future, sent = client.call_async(request), time.monotonic()
             self._spin_once(0.05)
         return future.result()
 

@@ -146,10 +146,9 @@ class Recorder(Node):
         The goal publisher seeing the planner's subscription is not enough: the planner's
         side of that match may come later, and a volatile reader drops what was sent before
         it matched (a goal lost on a loaded host: the planner stayed idle and cnc-run waited
-        out its timeout). The planner's first heartbeat, heard here, shows both participants
-        have discovered each other's endpoints."""
-        return (own <= self.pids_heard and self.goal_pub.get_subscription_count() >= 2 and self.feedback_ns > 0
-                and self.planner_heartbeats > 0)
+        out its timeout). The planner's first heartbeat, heard here (its pid is among
+        ``own``), shows both participants have discovered each other's endpoints."""
+        return own <= self.pids_heard and self.goal_pub.get_subscription_count() >= 2 and self.feedback_ns > 0
 
 
 class Session:

@@ -53,7 +53,11 @@ class RestOfSuite:
     def _outcome(self) -> str:
         self.log.seek(0)
         output = self.log.read().strip().splitlines() or ["(no output)"]
-        return "; ".join([output[-1]] + [line for line in output if line.startswith("FAILED ")])
+        outcome = "; ".join([output[-1]] + [line for line in output if line.startswith("FAILED ")])
+        if "failed" in output[-1]:  # why, not only which: the failure report's last lines
+            start = next((k for k, line in enumerate(output) if "= FAILURES =" in line), len(output))
+            outcome += "\n" + "\n".join(output[start:start + 80])
+        return outcome
 
 
 def main() -> int:

@@ -36,6 +36,7 @@ from cnc_msgs_py.node import run_node
 from cnc_msgs_py.parameters import Param, declare, value
 from cnc_msgs_py.units import NS
 
+from .feedback_msg import FeedbackBytes
 from .lockstep import Lockstep, WallPacing
 from .servo import DRIVES_DISABLED, Feedback, ServoLoop
 from .setpoints import SetpointError
@@ -112,9 +113,8 @@ class BridgeNode(LifecycleNode):
         self.max_steps = value(self, "steps_per_callback")
         self.joints = list(machine.joint_names)
         self.state_pub = self.create_publisher(JointState, topics.JOINT_STATES, qos.JOINT_STATES)
-        # One message refilled for every sample (publish copies it out at once): building a
-        # JointState per 1 ms sample cost several times more than filling one in.
-        self.state_msg = JointState(name=self.joints)
+        # One serialized message refilled for every sample (feedback_msg.py).
+        self.state_msg = FeedbackBytes(self.joints)
         self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS)
         self.clock_pub = self.create_publisher(Clock, topics.CLOCK, qos.CLOCK) if self.simulation else None
         self.inputs = [
@@ -254,10 +254,7 @@ class BridgeNode(LifecycleNode):
         return len(taken)
 
     def publish_feedback(self, feedback: Feedback) -> None:
-        msg = self.state_msg
-        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(feedback.stamp_ns, NS)
-        msg.position, msg.velocity = feedback.positions.tolist(), feedback.velocities.tolist()
-        self.state_pub.publish(msg)
+        self.state_pub.publish(self.state_msg.fill(feedback.stamp_ns, feedback.positions, feedback.velocities))
 
     def publish_diagnostics(self, event: str = "") -> None:
         """The drives' state; ``event``: an error to report once (a deactivation)."""

@@ -1,0 +1,46 @@
+"""joint_states as serialized bytes: one JointState serialized once by rclpy, then only its
+stamp, positions and velocities rewritten in place for every 1 kHz sample.
+
+Publishing bytes skips rclpy's conversion of a Python message (measured: 7.7 us a
+publish as a message, 3.0 us as bytes, without subscribers). The layout is rclpy's own:
+the offsets are found in its serialization of sentinel values, not computed by hand, and
+they stay fixed because the joint names (the only variable-length part before the
+arrays) do not change.
+"""
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+from rclpy.serialization import serialize_message
+from sensor_msgs.msg import JointState
+
+from cnc_msgs_py.units import NS
+
+STAMP_OFFSET = 4  # after the CDR encapsulation header: header.stamp.sec, .nanosec
+
+
+class FeedbackBytes:
+    """A JointState for fixed joints, refilled per sample and returned as CDR bytes."""
+
+    def __init__(self, joints: list[str]) -> None:
+        count = len(joints)
+        position, velocity = np.arange(1.5, count + 1.5), np.arange(-1.5, -count - 1.5, -1.0)
+        template = bytearray(serialize_message(JointState(name=joints, position=position.tolist(),
+                                                          velocity=velocity.tolist())))
+        self.position = template.find(position.tobytes())
+        self.velocity = template.find(velocity.tobytes())
+        if min(self.position, self.velocity) < 0:
+            raise ValueError("joint_states: positions not found in rclpy's serialization")
+        self.size = 8 * count
+        # The message ends with effort's count (empty): rclpy's buffer runs on past it with
+        # bytes it reserved, which a bag reader (rosbags) refuses as a size mismatch.
+        self.buffer = template[:self.velocity + self.size + 4]
+
+    def fill(self, stamp_ns: int, positions: np.ndarray, velocities: np.ndarray) -> bytes:
+        """The serialized JointState of one sample."""
+        buffer = self.buffer
+        struct.pack_into("<iI", buffer, STAMP_OFFSET, *divmod(stamp_ns, NS))
+        buffer[self.position:self.position + self.size] = np.asarray(positions, dtype="<f8").tobytes()
+        buffer[self.velocity:self.velocity + self.size] = np.asarray(velocities, dtype="<f8").tobytes()
+        return bytes(buffer)

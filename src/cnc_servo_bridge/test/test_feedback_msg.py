@@ -1,0 +1,23 @@
+"""joint_states published as bytes read back as the message they stand for, by rclpy and
+by the bag reader (rosbags), at every joint count of the shipped machines."""
+import numpy as np
+from rclpy.serialization import deserialize_message
+from rosbags.typesys import Stores, get_typestore
+from sensor_msgs.msg import JointState
+
+from cnc_servo_bridge.feedback_msg import FeedbackBytes
+
+
+def test_bytes_read_back_as_the_sample() -> None:
+    store = get_typestore(Stores.ROS2_JAZZY)
+    for joints in (["x", "z", "spindle"], ["x", "y", "z", "spindle"], ["a_long_joint_name", "b"]):
+        feedback = FeedbackBytes(joints)
+        for stamp_ns in (0, 1_234_567_890_123):
+            positions, velocities = np.linspace(-1.0, 2.0, len(joints)), np.arange(len(joints)) * 0.25
+            data = feedback.fill(stamp_ns, positions, velocities)
+            msg = deserialize_message(data, JointState)
+            assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == divmod(stamp_ns, 1_000_000_000)
+            assert msg.name == joints and list(msg.position) == positions.tolist()
+            assert list(msg.velocity) == velocities.tolist() and len(msg.effort) == 0
+            bag_msg = store.deserialize_cdr(data, "sensor_msgs/msg/JointState")
+            assert bag_msg.position.tolist() == positions.tolist() and bag_msg.name == joints

@@ -14,12 +14,14 @@ from typing import Callable
 
 import numpy as np
 
-from cnc_planner.motion.moves import shared_samples
+from cnc_planner.motion.jerk_profile import sample_rows
+from cnc_planner.motion.moves import DofSampler, shared_samples
 
 # Local time (s, from the piece's start) -> position, velocity, acceleration arrays.
 Sampler = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
 # Plan time (s) -> position, velocity and acceleration offsets (JointTimeline.carry).
 Correction = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
+BATCH_SAMPLES = 1 << 16  # instants sampled in one numpy pass over many pieces: bounds its temporaries
 
 
 @dataclass(frozen=True)
@@ -172,10 +174,40 @@ class JointTimeline:
                 v[lo:hi] = v0
                 p[lo:hi] = p0 + v0 * (ts[lo:hi] - t0)
                 a[lo:hi] = 0.0
-        for piece, (lo, hi) in zip(pieces, bounds.tolist()):
-            if hi > lo:
-                p[lo:hi], v[lo:hi], a[lo:hi] = piece.sample(ts[lo:hi] - piece.start)
+        held = [(piece, lo, hi) for piece, (lo, hi) in zip(pieces, bounds.tolist()) if hi > lo]
+        # A later piece overwrites an earlier one where they share instants: in one pass
+        # only where none do.
+        disjoint = all(a[2] <= b[1] for a, b in zip(held, held[1:]))
+        batch = []
+        for piece, lo, hi in held:
+            sampler, local = piece.sample, ts[lo:hi] - piece.start
+            row = sampler.move.row(sampler.dof) if disjoint and type(sampler) is DofSampler else None
+            if row is not None and sampler.move.claim(local):
+                batch.append((lo, hi, local, row))
+            else:
+                p[lo:hi], v[lo:hi], a[lo:hi] = sampler(local)
+        self._sample_batch(batch, (p, v, a))
         return p, v, a
+
+    @staticmethod
+    def _sample_batch(batch: list[tuple[int, int, np.ndarray, np.ndarray]],
+                      out: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
+        """Pieces (lo, hi, local instants, row) of RuckigMove dofs written to out[lo:hi] as
+        their samplers would, BATCH_SAMPLES instants per numpy pass (sample_rows)."""
+        first = 0
+        while first < len(batch):
+            last, total = first, 0
+            while last < len(batch) and (total == 0 or total + batch[last][1] - batch[last][0] <= BATCH_SAMPLES):
+                total += batch[last][1] - batch[last][0]
+                last += 1
+            lo, hi, local, rows = zip(*batch[first:last])
+            counts = np.subtract(hi, lo)
+            which = np.repeat(np.arange(len(counts)), counts)
+            index = np.arange(total) + np.repeat(np.asarray(lo) - (np.cumsum(counts) - counts), counts)
+            values = sample_rows(np.array(rows), which, np.concatenate(local))
+            for q in range(3):
+                out[q][index] = values[q]
+            first = last
 
     def _coast_at(self, ts: np.ndarray) -> np.ndarray:
         """The (t, p, v) coast state in force at each of the instants ts."""

@@ -102,6 +102,7 @@ class TrajectorySampler:
         return np.array(_integrate(dt, p0, v0, a0, j))
 
 
+BATCH_SAMPLES = 1 << 16  # instants sampled in one numpy pass over many pieces: bounds its temporaries
 # A row of sample_rows' table: t_sum (7), start (8), then p, v, a, j (8 each), duration.
 _START, _PVAJ, _DURATION = 7, 15, 47
 
@@ -117,3 +118,23 @@ def sample_rows(table: np.ndarray, which: np.ndarray, t: np.ndarray) -> np.ndarr
     dt = t - table[which, _START + index]
     p0, v0, a0, j = (table[which, _PVAJ + 8 * q + index] for q in range(4))
     return _integrate_into(dt, p0, v0, a0, j)
+
+
+def sample_pieces(batch: list[tuple[int, int, np.ndarray, np.ndarray]],
+                  out: tuple[np.ndarray, np.ndarray, np.ndarray] | list[np.ndarray]) -> None:
+    """Pieces (lo, hi, local instants, row) of brake-free dofs written to out[q][lo:hi] as
+    their samplers would, BATCH_SAMPLES instants per numpy pass (sample_rows)."""
+    first = 0
+    while first < len(batch):
+        last, total = first, 0
+        while last < len(batch) and (total == 0 or total + batch[last][1] - batch[last][0] <= BATCH_SAMPLES):
+            total += batch[last][1] - batch[last][0]
+            last += 1
+        lo, hi, local, rows = zip(*batch[first:last])
+        counts = np.subtract(hi, lo)
+        which = np.repeat(np.arange(len(counts)), counts)
+        index = np.arange(total) + np.repeat(np.asarray(lo) - (np.cumsum(counts) - counts), counts)
+        values = sample_rows(np.array(rows), which, np.concatenate(local))
+        for q in range(3):
+            out[q][index] = values[q]
+        first = last

@@ -14,14 +14,13 @@ from typing import Callable
 
 import numpy as np
 
-from cnc_planner.motion.jerk_profile import sample_rows
+from cnc_planner.motion.jerk_profile import sample_pieces
 from cnc_planner.motion.moves import DofSampler, shared_samples
 
 # Local time (s, from the piece's start) -> position, velocity, acceleration arrays.
 Sampler = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
 # Plan time (s) -> position, velocity and acceleration offsets (JointTimeline.carry).
 Correction = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
-BATCH_SAMPLES = 1 << 16  # instants sampled in one numpy pass over many pieces: bounds its temporaries
 
 
 @dataclass(frozen=True)
@@ -186,28 +185,8 @@ class JointTimeline:
                 batch.append((lo, hi, local, row))
             else:
                 p[lo:hi], v[lo:hi], a[lo:hi] = sampler(local)
-        self._sample_batch(batch, (p, v, a))
+        sample_pieces(batch, (p, v, a))
         return p, v, a
-
-    @staticmethod
-    def _sample_batch(batch: list[tuple[int, int, np.ndarray, np.ndarray]],
-                      out: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
-        """Pieces (lo, hi, local instants, row) of RuckigMove dofs written to out[lo:hi] as
-        their samplers would, BATCH_SAMPLES instants per numpy pass (sample_rows)."""
-        first = 0
-        while first < len(batch):
-            last, total = first, 0
-            while last < len(batch) and (total == 0 or total + batch[last][1] - batch[last][0] <= BATCH_SAMPLES):
-                total += batch[last][1] - batch[last][0]
-                last += 1
-            lo, hi, local, rows = zip(*batch[first:last])
-            counts = np.subtract(hi, lo)
-            which = np.repeat(np.arange(len(counts)), counts)
-            index = np.arange(total) + np.repeat(np.asarray(lo) - (np.cumsum(counts) - counts), counts)
-            values = sample_rows(np.array(rows), which, np.concatenate(local))
-            for q in range(3):
-                out[q][index] = values[q]
-            first = last
 
     def _coast_at(self, ts: np.ndarray) -> np.ndarray:
         """The (t, p, v) coast state in force at each of the instants ts."""

@@ -120,8 +120,8 @@ class RuckigMove:
         """A sampler of one degree of freedom, for a JointTimeline piece."""
         return DofSampler(self, dof)
 
-    def row(self, dof: int) -> np.ndarray | None:
-        """The dof's phases as a jerk_profile.sample_rows row (None with a brake)."""
+    def row(self, dof: int) -> np.ndarray:
+        """The dof's phases as a row of jerk_profile.sample_rows' table."""
         if self._sampler is None:
             self._sampler = TrajectorySampler(self.trajectory)
         return self._sampler.rows[dof]

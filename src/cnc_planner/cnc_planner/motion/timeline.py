@@ -180,9 +180,8 @@ class JointTimeline:
         batch = []
         for piece, lo, hi in held:
             sampler, local = piece.sample, ts[lo:hi] - piece.start
-            row = sampler.move.row(sampler.dof) if disjoint and type(sampler) is DofSampler else None
-            if row is not None and sampler.move.claim(local):
-                batch.append((lo, hi, local, row))
+            if disjoint and type(sampler) is DofSampler and sampler.move.claim(local):
+                batch.append((lo, hi, local, sampler.move.row(sampler.dof)))
             else:
                 p[lo:hi], v[lo:hi], a[lo:hi] = sampler(local)
         sample_pieces(batch, (p, v, a))

@@ -74,14 +74,13 @@ class XYCommand:
         batch: dict[str, list] = {j: [] for j in XY}
         for (t_s1_i, xy, _, lo, hi), stop in zip(window, until):
             local = ts[lo:hi] - t_s1_i if hi > lo else None
-            rows = [xy.move.row(dof) for dof in range(len(xy.joints))] if local is not None else []
-            batched = local is not None and all(row is not None for row in rows) and xy.move.claim(local)
+            batched = local is not None and xy.move.claim(local)
             pva = xy.move.sample_all(local) if local is not None and not batched else None
             for dof, j in enumerate(xy.joints):
                 out[j][0][hi:stop[j]] = xy.target[j]
                 end = min(hi, stop[j])
                 if batched and end > lo:
-                    batch[j].append((lo, end, local[: end - lo], rows[dof]))
+                    batch[j].append((lo, end, local[: end - lo], xy.move.row(dof)))
                 elif pva is not None and end > lo:
                     for q in range(3):
                         out[j][q][lo:end] = pva[q][: end - lo, dof]

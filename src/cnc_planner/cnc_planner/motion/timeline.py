@@ -55,7 +55,7 @@ class JointTimeline:
 
     @property
     def end_time(self) -> float:
-        return self.pieces[-1].end if self.pieces else 0.0
+        return self._coast[-1][0]  # the last piece's end (0 before any), asked for every move added
 
     @property
     def settled_time(self) -> float:

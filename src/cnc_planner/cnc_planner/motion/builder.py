@@ -18,10 +18,12 @@ class PlanBuilder:
     """
 
     def __init__(self, machine: Machine, start_position: dict[str, float] | None = None,
-                 spindle_speed: float = 0.0):
+                 spindle_speed: float = 0.0, events: bool = True):
         """``spindle_speed``: the spindle already turns at this speed (rad/s), as when a
-        long job is planned segment by segment."""
+        long job is planned segment by segment. ``events``: False for a scratch plan of a
+        timing search, whose events nobody reads (a drill cycle marks ~15 per hole)."""
         self.machine = machine
+        self.record_events = events
         start_position = start_position or {}
         self.timelines = {j: JointTimeline(start_position.get(j, 0.0), spindle_speed if j == SPINDLE else 0.0)
                           for j in machine.joint_names}
@@ -41,7 +43,8 @@ class PlanBuilder:
         return max([self.end_time()] + [self.timelines[j].settled_time for j in joints])
 
     def event(self, time: float, name: str, **data: object) -> None:
-        self.events.append(Event(time, name, data))
+        if self.record_events:
+            self.events.append(Event(time, name, data))
 
     def _add(self, joints: list[str], start: float, move, ends: list[float], velocities=None) -> float:
         for dof, joint in enumerate(joints):

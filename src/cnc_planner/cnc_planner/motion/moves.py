@@ -64,6 +64,16 @@ def shared_samples() -> Iterator[None]:
             _scope.samples.clear()
 
 
+class _Claimed:
+    """Instants a timeline sampled itself under a sample_all key (RuckigMove.claim): a
+    later ask with that key is answered with these instants' samples, as if cached."""
+
+    __slots__ = ("t",)
+
+    def __init__(self, t: np.ndarray) -> None:
+        self.t = t
+
+
 class RuckigMove:
     """A ruckig trajectory over several degrees of freedom, sampled on demand."""
 
@@ -79,26 +89,57 @@ class RuckigMove:
         """Array (3, len(t), dofs): position, velocity, acceleration."""
         if _scope.depth == 0:
             return self._sample(t)
-        # The key holds the move itself (compared by identity), so it cannot outlive it.
-        key = (self, len(t), float(t[0]), float(t[-1])) if len(t) else (self, 0, 0.0, 0.0)
+        key = self._key(t)
         out = _scope.samples.get(key)
-        if out is None:
-            out = _scope.samples[key] = self._sample(t)
+        if out is None or type(out) is _Claimed:
+            out = _scope.samples[key] = self._sample(t if out is None else out.t)
         return out
+
+    def _key(self, t: np.ndarray) -> tuple:
+        # The key holds the move itself (compared by identity), so it cannot outlive it.
+        return (self, len(t), float(t[0]), float(t[-1])) if len(t) else (self, 0, 0.0, 0.0)
+
+    def claim(self, t: np.ndarray) -> bool:
+        """Whether a caller may sample the instants t itself (jerk_profile.sample_rows):
+        not where this scope already holds samples under their key, which sample_all
+        would return instead. A claim is kept as the key's samples for later asks."""
+        if _scope.depth == 0:
+            return True
+        key = self._key(t)
+        if key in _scope.samples:
+            return False
+        _scope.samples[key] = _Claimed(t)
+        return True
 
     def _sample(self, t: np.ndarray) -> np.ndarray:
         if self._sampler is None:
             self._sampler = TrajectorySampler(self.trajectory)
         return self._sampler.sample(t)
 
-    def sampler(self, dof: int):
+    def sampler(self, dof: int) -> DofSampler:
         """A sampler of one degree of freedom, for a JointTimeline piece."""
+        return DofSampler(self, dof)
 
-        def sample(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-            out = self.sample_all(t)
-            return out[0][:, dof], out[1][:, dof], out[2][:, dof]
+    def row(self, dof: int) -> np.ndarray:
+        """The dof's phases as a row of jerk_profile.sample_rows' table."""
+        if self._sampler is None:
+            self._sampler = TrajectorySampler(self.trajectory)
+        return self._sampler.rows[dof]
 
-        return sample
+
+class DofSampler:
+    """One degree of freedom of a RuckigMove as a timeline piece's sampler: an object, not
+    a closure, so that a timeline can sample a run of such pieces in one numpy pass."""
+
+    __slots__ = ("move", "dof")
+
+    def __init__(self, move: RuckigMove, dof: int) -> None:
+        self.move = move
+        self.dof = dof
+
+    def __call__(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        out = self.move.sample_all(t)
+        return out[0][:, self.dof], out[1][:, self.dof], out[2][:, self.dof]
 
 
 def point_to_point(start: list[float], target: list[float], limits: list[Limits]) -> RuckigMove:

@@ -14,7 +14,8 @@ from typing import Callable
 
 import numpy as np
 
-from cnc_planner.motion.moves import shared_samples
+from cnc_planner.motion.jerk_profile import sample_pieces
+from cnc_planner.motion.moves import DofSampler, shared_samples
 
 # Local time (s, from the piece's start) -> position, velocity, acceleration arrays.
 Sampler = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
@@ -54,7 +55,7 @@ class JointTimeline:
 
     @property
     def end_time(self) -> float:
-        return self.pieces[-1].end if self.pieces else 0.0
+        return self._coast[-1][0]  # the last piece's end (0 before any), asked for every move added
 
     @property
     def settled_time(self) -> float:
@@ -172,9 +173,18 @@ class JointTimeline:
                 v[lo:hi] = v0
                 p[lo:hi] = p0 + v0 * (ts[lo:hi] - t0)
                 a[lo:hi] = 0.0
-        for piece, (lo, hi) in zip(pieces, bounds.tolist()):
-            if hi > lo:
-                p[lo:hi], v[lo:hi], a[lo:hi] = piece.sample(ts[lo:hi] - piece.start)
+        held = [(piece, lo, hi) for piece, (lo, hi) in zip(pieces, bounds.tolist()) if hi > lo]
+        # A later piece overwrites an earlier one where they share instants: in one pass
+        # only where none do.
+        disjoint = all(a[2] <= b[1] for a, b in zip(held, held[1:]))
+        batch = []
+        for piece, lo, hi in held:
+            sampler, local = piece.sample, ts[lo:hi] - piece.start
+            if disjoint and type(sampler) is DofSampler and sampler.move.claim(local):
+                batch.append((lo, hi, local, sampler.move.row(sampler.dof)))
+            else:
+                p[lo:hi], v[lo:hi], a[lo:hi] = sampler(local)
+        sample_pieces(batch, (p, v, a))
         return p, v, a
 
     def _coast_at(self, ts: np.ndarray) -> np.ndarray:

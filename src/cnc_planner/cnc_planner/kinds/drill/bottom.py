@@ -69,6 +69,7 @@ class Bottoms:
         self.z = z
         self.fast_exit = fast_exit
         self._turns: dict[tuple[float, ...], float] = {}
+        self._by_hole: dict[int, float] = {}  # each emit of the timing search asks every hole again
         self._approaches: dict[tuple[float, float, float], tuple[float, tuple[RuckigMove, ...]]] = {}
 
     def turning_point(self, hole: int) -> float:
@@ -78,11 +79,12 @@ class Bottoms:
         (about 16 um on mill3 at 1200 mm/min), one without full feed-forward falls short.
         A dwelled hole's command ends at the bottom itself, pre-compensated so that the
         feedback stops there (dwell.Dwells); a vibrated one is compensated as a whole."""
-        c = self.cycle
-        _, _, bottom = c.planes(hole)
-        if not c.compensate_xy or c.vibration is not None or c.dwell > 0:
-            return bottom
-        return self._aimed_turn(*self.final_approach(hole), bottom)
+        if hole not in self._by_hole:
+            c = self.cycle
+            _, _, bottom = c.planes(hole)
+            plain = not c.compensate_xy or c.vibration is not None or c.dwell > 0
+            self._by_hole[hole] = bottom if plain else self._aimed_turn(*self.final_approach(hole), bottom)
+        return self._by_hole[hole]
 
     def final_approach(self, hole: int) -> tuple[float, tuple[RuckigMove, ...]]:
         """Where a hole's last feed stroke starts (feeding) and the Z moves that bring the

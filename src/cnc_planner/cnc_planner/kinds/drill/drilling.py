@@ -87,7 +87,7 @@ def plan_drilling(builder: PlanBuilder, cycle: DrillCycle) -> list[dict]:
     e_down, e_up = lag.safe_gaps(emit, t0, e_down, e_up, floor_down, floor_up)
     accel = full
     if cycle.gentle_air_accel:
-        infos = emit(PlanBuilder(machine, start), t0, e_down, e_up, full, False)
+        infos = emit(PlanBuilder(machine, start, events=False), t0, e_down, e_up, full, False)
         ups = [t0] + [info["r_up"] for info in infos[:-1]]
         air_times = [info["r_down"] - u for info, u in zip(infos, ups)]
         starts = [(start["z"], 0.0, 0.0)] + [r.state for r in chosen[:-1]]

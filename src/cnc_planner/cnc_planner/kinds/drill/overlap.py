@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from cnc_planner.kinds.drill.air import air_energy
+from cnc_planner.kinds.drill.air import air_energies
 from cnc_planner.kinds.drill.cycle import DrillCycle
 from cnc_planner.kinds.drill.retract import LastRetract, Retract
 from cnc_planner.kinds.drill.servo_lag import Emit
@@ -44,6 +44,7 @@ def overlapped(cycle: DrillCycle, start: dict[str, float], z: ZAxis, xy_moves: l
         period = cycle.servo_period
         command = XYCommand(start, period) if cycle.compensate_xy else None
         lead = XY_COMMAND_LEAD * period
+        airs = []  # each hole's air move, for its energy
         for i, xy in enumerate(xy_moves):
             last = i == n - 1
             mode = last_retract.mode if last else retracts[i].mode
@@ -87,9 +88,11 @@ def overlapped(cycle: DrillCycle, start: dict[str, float], z: ZAxis, xy_moves: l
                     "r_down": float(t_down),
                     "s3": float(t_s3), "r_up": float(u), "apex_z": float(apex.max),
                     "air_time": float(t_down - t_air), "air_accel": float(accel[i])}
-            if energy:
-                info["air_energy"] = air_energy(air)
+            airs.append(air)
             infos.append(info)
+        if energy:
+            for info, value in zip(infos, air_energies(airs)):
+                info["air_energy"] = value
         if command is not None:
             command.write(builder)
         strokes.settle_corrections(builder)

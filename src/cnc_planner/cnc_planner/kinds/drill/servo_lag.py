@@ -129,6 +129,6 @@ class ServoLag:
     def margins(self, emit: Emit, t0: float, e_down: np.ndarray, e_up: np.ndarray,
                 accel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Plan the cycle on a scratch builder and measure its lag margins on feedback."""
-        builder = PlanBuilder(self.machine, self.start)
+        builder = PlanBuilder(self.machine, self.start, events=False)
         infos = emit(builder, t0, e_down, e_up, accel, False)
         return self.lag_margins(builder.build(), infos, t0)

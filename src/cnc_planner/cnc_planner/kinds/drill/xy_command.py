@@ -6,6 +6,7 @@ import numpy as np
 
 from cnc_planner.kinds.drill.xy_moves import XY, XY_COMMAND_LEAD, XYMove
 from cnc_planner.motion.builder import PlanBuilder
+from cnc_planner.motion.jerk_profile import sample_pieces
 from cnc_planner.motion.timeline import Piece
 
 
@@ -20,6 +21,7 @@ class XYCommand:
         self.entries: list[tuple[float, XYMove, float]] = []  # (move start, move, correction start)
         self._cache: tuple[tuple, dict] | None = None
         self._reach: np.ndarray | None = None
+        self._times_cache: tuple[np.ndarray, ...] | None = None
         self._held_after: list[dict[str, float]] = [dict(self.start)]  # _held's, per entry
 
     def add(self, t_s1: float, xy: XYMove) -> None:
@@ -48,39 +50,75 @@ class XYCommand:
         first = self._first_entry(ts[0]) if len(ts) else len(self.entries)
         held = self._held(first)
         out = {j: [np.full_like(ts, held[j]), np.zeros_like(ts), np.zeros_like(ts)] for j in XY}
-        window = []
-        for t_s1, xy, c0 in self.entries[first:]:
-            if len(ts) == 0 or min(t_s1, c0) > ts[-1]:
-                break
-            window.append((xy, c0, t_s1, *np.searchsorted(ts, [t_s1, t_s1 + xy.duration], side="left")))
+        if len(ts):
+            self._write(ts, first, out)
+        self._cache = (key, out)
+        return out
+
+    def _write(self, ts: np.ndarray, first: int, out: dict[str, list[np.ndarray]]) -> None:
+        """The entries from ``first`` that reach into ts written into ``out``: the moves'
+        samples in one pass per axis (sample_pieces), each correction's interpolation in
+        one call for all entries that share it (np.interp, elementwise the same values)."""
+        t_s1, ends, c0s, c_ends = self._times()
+        last = first + int(np.argmax(np.append(np.minimum(t_s1[first:], c0s[first:]) > ts[-1], True)))
+        bounds = np.searchsorted(ts, np.stack((t_s1[first:last], ends[first:last]), axis=1), side="left")
+        c_lo = np.searchsorted(ts, c0s[first:last], side="left").tolist()
+        c_hi = np.searchsorted(ts, c_ends[first:last], side="right").tolist()
+        window = [(*self.entries[first + i], lo, hi) for i, (lo, hi) in enumerate(bounds.tolist())]
         overridden = {j: len(ts) for j in XY}  # where the next move of each axis starts
         until = []
-        for xy, _, _, lo, _ in reversed(window):
+        for _, xy, _, lo, _ in reversed(window):
             until.append({j: overridden[j] for j in xy.joints})
             overridden.update({j: lo for j in xy.joints})
         until.reverse()
-        for (xy, _, t_s1, lo, hi), stop in zip(window, until):
-            pva = xy.move.sample_all(ts[lo:hi] - t_s1) if hi > lo else None
+        batch: dict[str, list] = {j: [] for j in XY}
+        for (t_s1_i, xy, _, lo, hi), stop in zip(window, until):
+            local = ts[lo:hi] - t_s1_i if hi > lo else None
+            batched = local is not None and xy.move.claim(local)
+            pva = xy.move.sample_all(local) if local is not None and not batched else None
             for dof, j in enumerate(xy.joints):
                 out[j][0][hi:stop[j]] = xy.target[j]
                 end = min(hi, stop[j])
-                for q in range(3):
-                    if pva is not None and end > lo:
+                if batched and end > lo:
+                    batch[j].append((lo, end, local[: end - lo], xy.move.row(dof)))
+                elif pva is not None and end > lo:
+                    for q in range(3):
                         out[j][q][lo:end] = pva[q][: end - lo, dof]
-        for (xy, c0, _, _, _), stop in zip(window, until):
+        for j in XY:
+            sample_pieces(batch[j], out[j])
+        # Corrections: one np.interp per shared correction, dof and q for all its entries,
+        # added in entry order (np.add.at): a correction's lead overlaps the tail before it.
+        groups: dict[tuple[int, int], list] = {}  # (correction, dof) -> [correction, dof, instants, count]
+        parts: dict[str, list[tuple[tuple[int, int], int, int, int]]] = {j: [] for j in XY}
+        for (_, xy, c0, _, _), stop, lo, hi in zip(window, until, c_lo, c_hi):
             if xy.correction is None:  # a move planned without one (no headroom for it)
                 continue
-            k = xy.correction.shape[1]
-            lo = np.searchsorted(ts, c0, side="left")
-            hi = np.searchsorted(ts, c0 + (k - 1) * self.period, side="right")
-            grid = np.arange(k) * self.period
             for dof, j in enumerate(xy.joints):
                 end = min(hi, stop[j])
+                if end > lo:
+                    group = groups.setdefault((id(xy.correction), dof), [xy.correction, dof, [], 0])
+                    parts[j].append(((id(xy.correction), dof), group[3], end - lo, lo))
+                    group[2].append(ts[lo:end] - c0)
+                    group[3] += end - lo
+        values = {}
+        for key, (correction, dof, local, _) in groups.items():
+            x, grid = np.concatenate(local), np.arange(correction.shape[1]) * self.period
+            values[key] = [np.interp(x, grid, correction[q, :, dof]) for q in range(3)]
+        for j in XY:
+            if parts[j]:
+                where = np.concatenate([np.arange(lo, lo + n) for _, _, n, lo in parts[j]])
                 for q in range(3):
-                    if end > lo:
-                        out[j][q][lo:end] += np.interp(ts[lo:end] - c0, grid, xy.correction[q, :, dof])
-        self._cache = (key, out)
-        return out
+                    np.add.at(out[j][q], where, np.concatenate([values[key][q][o:o + n] for key, o, n, _ in parts[j]]))
+
+    def _times(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Per entry: its move's start and end, its correction's first and last instant."""
+        if self._times_cache is None or len(self._times_cache[0]) != len(self.entries):
+            t_s1 = np.array([t for t, _, _ in self.entries], dtype=float)
+            c0 = np.array([c for _, _, c in self.entries], dtype=float)
+            ends = t_s1 + np.array([xy.duration for _, xy, _ in self.entries], dtype=float)
+            samples = np.array([xy.correction_samples for _, xy, _ in self.entries])
+            self._times_cache = (t_s1, ends, c0, c0 + (samples - 1) * self.period)
+        return self._times_cache
 
     def _held(self, first: int) -> dict[str, float]:
         """Where the axes stand after the first ``first`` entries' moves (kept per entry:

@@ -200,9 +200,12 @@ class ThreadCycle:
     def _air_path(self, target: np.ndarray, t_join: float, t_begin: float,
                   starts: list[tuple[float, list[float]]], x_free: float) -> list[list[Stretch]] | None:
         """The first of _air_paths onto ``target`` at t_join that keeps the tool out of the
-        stock from t_begin on, or None."""
-        grid = np.arange(math.floor(t_begin / self.period), round(t_join / self.period)) * self.period
+        stock from t_begin on, or None (the grid is built for the first path found: most
+        candidate joins find none)."""
+        grid = None
         for tried in self._air_paths(target, t_join, starts, x_free):
+            if grid is None:
+                grid = np.arange(math.floor(t_begin / self.period), round(t_join / self.period)) * self.period
             if not self._cuts_stock(*(self._sample(track + extra, grid)[0] for track, extra in zip(self.tracks, tried))):
                 return tried
         return None

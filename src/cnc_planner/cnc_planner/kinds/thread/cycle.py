@@ -200,9 +200,12 @@ class ThreadCycle:
     def _air_path(self, target: np.ndarray, t_join: float, t_begin: float,
                   starts: list[tuple[float, list[float]]], x_free: float) -> list[list[Stretch]] | None:
         """The first of _air_paths onto ``target`` at t_join that keeps the tool out of the
-        stock from t_begin on, or None."""
-        grid = np.arange(math.floor(t_begin / self.period), round(t_join / self.period)) * self.period
+        stock from t_begin on, or None (the grid is built for the first path found: most
+        candidate joins find none)."""
+        grid = None
         for tried in self._air_paths(target, t_join, starts, x_free):
+            if grid is None:
+                grid = np.arange(math.floor(t_begin / self.period), round(t_join / self.period)) * self.period
             if not self._cuts_stock(*(self._sample(track + extra, grid)[0] for track, extra in zip(self.tracks, tried))):
                 return tried
         return None
@@ -261,10 +264,16 @@ class ThreadCycle:
         """The x plunge and z returns that reach the helix state ``target`` (rows x, z)
         exactly at t_join, best first: z from each of ``starts`` (time, state) that can,
         stretched to the time there is; then, from the last (at rest), z turning at rest
-        TURN_ROOM in front of the join, so that x plunges while z is clear of the face."""
-        plunge = self._plunge(target[0].tolist(), t_join, x_free)
-        if plunge is None:
-            return
+        TURN_ROOM in front of the join, so that x plunges while z is clear of the face.
+        The x plunge (a bisection over ruckig) is found only once a z return can reach the
+        join: most candidate joins fail on z's fastest time alone."""
+        found: list[Stretch | None] = []
+
+        def plunge() -> Stretch | None:
+            if not found:
+                found.append(self._plunge(target[0].tolist(), t_join, x_free))
+            return found[0]
+
         z_target = target[1].tolist()
         late = None
         for t_go, z_state in starts:
@@ -277,10 +286,15 @@ class ThreadCycle:
             back = self._ramps.reach("z", z_state, z_target, duration=t_join - t_leave)
             if back is None or abs(back.duration - (t_join - t_leave)) > 1e-9:
                 continue
-            yield [[plunge], [(t_leave, _moving(t_leave, back))]]
+            if plunge() is None:
+                return
+            yield [[plunge()], [(t_leave, _moving(t_leave, back))]]
             late = (t_go, z_state, fastest)
         if self.cuts:
-            yield from ([[plunge], z] for z in self._through_face(starts[0], z_target, t_join))
+            for z in self._through_face(starts[0], z_target, t_join):
+                if plunge() is None:
+                    return
+                yield [[plunge()], z]
         if late is None or late[1][1] != 0.0:
             return
         t_go, z_state, _ = late
@@ -298,7 +312,9 @@ class ThreadCycle:
             if (there is None or onto is None or abs(there.duration - (t_turn - t_leave)) > 1e-9
                     or abs(onto.duration - (t_join - t_turn)) > 1e-9):
                 continue
-            yield [[plunge], [(t_leave, _moving(t_leave, there)), (t_turn, _moving(t_turn, onto))]]
+            if plunge() is None:
+                return
+            yield [[plunge()], [(t_leave, _moving(t_leave, there)), (t_turn, _moving(t_turn, onto))]]
 
     def _through_face(self, start: tuple[float, list[float]], z_target: list[float], t_join: float):
         """z returns from the helix's exit that cross the face as soon as they can, at

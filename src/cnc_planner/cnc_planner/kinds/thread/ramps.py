@@ -19,28 +19,37 @@ RAMP_JERK_SHARE = 0.6  # of the axis jerk for ramps onto and off the helix
 
 class Ramps:
     """Jerk-limited single-axis moves between states at the ramps' share of the jerk limit,
-    on one reused ruckig instance (building one costs more than its calculation)."""
+    on one reused ruckig instance and input per axis (building them costs more than the
+    calculation). Answers are kept by their exact query: the searches for every candidate
+    join ask for the same moves (z onto the face, from the same stop) again and again."""
 
     def __init__(self, machine: Machine) -> None:
-        self._limits = {j: axis_limits(machine.axis(j)) for j in JOINTS}
         self._ruckig = Ruckig(1)
+        self._inputs: dict[str, InputParameter] = {}
+        for joint in JOINTS:
+            limits = axis_limits(machine.axis(joint))
+            inp = self._inputs[joint] = InputParameter(1)
+            inp.max_velocity, inp.max_acceleration = [limits.velocity], [limits.acceleration]
+            inp.max_jerk = [RAMP_JERK_SHARE * limits.jerk]
+        self._known: dict[tuple, Trajectory | None] = {}
 
-    def reach(self, joint: str, start: np.ndarray, target: np.ndarray,
+    def reach(self, joint: str, start: Sequence[float], target: Sequence[float],
               duration: float | None = None) -> Trajectory | None:
         """The move of ``joint`` from state start to state target (p, v, a), lasting at
         least ``duration`` if given, or None if ruckig finds none."""
-        limits = self._limits[joint]
-        inp = InputParameter(1)
+        key = (joint, *start, *target, duration)
+        if key in self._known:
+            return self._known[key]
+        inp = self._inputs[joint]
         inp.current_position, inp.current_velocity, inp.current_acceleration = ([x] for x in start)
         inp.target_position, inp.target_velocity, inp.target_acceleration = ([x] for x in target)
-        inp.max_velocity, inp.max_acceleration = [limits.velocity], [limits.acceleration]
-        inp.max_jerk = [RAMP_JERK_SHARE * limits.jerk]
-        if duration is not None:
-            inp.minimum_duration = duration
+        inp.minimum_duration = duration
         try:
-            return calculate(inp, self._ruckig)
+            move = calculate(inp, self._ruckig)
         except (MotionError, RuckigError):
-            return None
+            move = None
+        self._known[key] = move
+        return move
 
 
 def z_to_speed(machine: Machine, state: Sequence[float], speed: float) -> Trajectory:

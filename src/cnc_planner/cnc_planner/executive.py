@@ -40,13 +40,15 @@ class Settings:
     planning_lookahead_ns: int = 1_000_000_000  # the same while a goal (or the running job's
     # next segment) is being planned beside the stream: planning holds the GIL, and under CPU load the stream's thread then
     # waits for it each time it asks (0.3 s of setpoints ran dry in real time)
-    start_delay_ns: int = 400_000_000  # from the feedback that starts a job to its first setpoint:
+    start_delay_ns: int = 600_000_000  # from the feedback that starts a job to its first setpoint:
     # the idle bridge's time runs on meanwhile, so this must cover a tick slowed by a loaded CPU
     status_period_ns: int = 500_000_000  # progress updates on job_status
-    min_lead_ns: int = 300_000_000  # a job's first chunk reaching the bridge's clock with less
+    min_lead_ns: int = 500_000_000  # a job's first chunk reaching the bridge's clock with less
     # lead than this (a start delayed by planning, a loaded CPU or DDS) is re-timed, not sent stale;
-    # at 0.1 s a first chunk still arrived 42 ms late beside two busy processes (load average 9):
-    # in simulation the planner reads the bridge's clock from /clock, itself late under load
+    # at 0.1 s a first chunk still arrived 42 ms late beside two busy processes (load average 9),
+    # at 0.3 s 50 and 67 ms late in a fresh-clone suite (a bridge just restarted; three machines
+    # starting at once on 2 CPUs): in simulation the planner reads the bridge's clock from
+    # /clock, itself late under load
 
 
 @dataclass

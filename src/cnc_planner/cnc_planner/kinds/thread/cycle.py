@@ -9,6 +9,7 @@ bridge's feedback, not only the command, holds lead, depth and flank offset.
 """
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -267,12 +268,9 @@ class ThreadCycle:
         TURN_ROOM in front of the join, so that x plunges while z is clear of the face.
         The x plunge (a bisection over ruckig) is found only once a z return can reach the
         join: most candidate joins fail on z's fastest time alone."""
-        found: list[Stretch | None] = []
-
+        @functools.cache
         def plunge() -> Stretch | None:
-            if not found:
-                found.append(self._plunge(target[0].tolist(), t_join, x_free))
-            return found[0]
+            return self._plunge(target[0].tolist(), t_join, x_free)
 
         z_target = target[1].tolist()
         late = None

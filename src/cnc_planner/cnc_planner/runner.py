@@ -37,6 +37,7 @@ QOS = {
     "joint_states": qos.JOINT_STATES, "/diagnostics": qos.DIAGNOSTICS, "/clock": qos.CLOCK,
 }
 SETTLE_S = 0.2  # sim time recorded after the final status, so the drives' settling shows
+PROCESS_CHECK_S = 0.1  # wall time between checks of the deadline and the node processes
 ACK_EVERY_NS = 10_000_000  # tell the bridge what has been written every 10 ms of its time
 
 
@@ -249,12 +250,16 @@ class Session:
 
     def spin_until(self, done: Callable[[], bool], timeout: float, what: str) -> None:
         deadline = time.monotonic() + timeout
+        next_check = 0.0
         while not done():
-            if time.monotonic() > deadline:
-                raise RunError(what)
-            dead = [name for name, p in self.procs.items() if p.poll() is not None]
-            if dead:
-                raise RunError(f"{what}: the {dead[0]} exited with code {self.procs[dead[0]].returncode}")
+            # A spin takes one message (thousands a second in simulation): checks per PROCESS_CHECK_S.
+            if (now := time.monotonic()) >= next_check:
+                if now > deadline:
+                    raise RunError(what)
+                dead = [name for name, p in self.procs.items() if p.poll() is not None]
+                if dead:
+                    raise RunError(f"{what}: the {dead[0]} exited with code {self.procs[dead[0]].returncode}")
+                next_check = now + PROCESS_CHECK_S
             self.executor.spin_once(timeout_sec=0.05)
             if self.progress is not None:
                 for status in self.recorder.statuses[self._shown:]:

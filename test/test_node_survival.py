@@ -3,11 +3,15 @@ from __future__ import annotations
 
 import os
 import signal
+import threading
 
 import pytest
 import rclpy
+from rclpy.duration import Duration
 from rclpy.node import Node
+from std_msgs.msg import String
 
+from cnc_msgs_py import qos
 from cnc_msgs_py.node import run_node, spin
 
 RCLPY_ERROR = "Unable to convert call argument '0' to Python object"  # as take_message raised it
@@ -69,3 +73,27 @@ def test_ctrl_c_asks_for_a_stop_and_never_interrupts_a_callback():
     assert run_node(make, "stoppable", [], package="cnc_msgs_py") == 0
     assert finished and finished[0] == 499500
     assert signal.getsignal(signal.SIGINT) is before  # the caller's handler is back
+
+
+def test_a_message_that_arrived_before_the_spin_is_delivered(node):
+    """A goal can reach a freshly started planner before its node joins the executor; an
+    earlier trial of the EventsExecutor lost such goals (2 of 19 starts)."""
+    sender = Node("early_sender")
+    got = []
+
+    def keep(msg: String) -> None:
+        got.append(msg.data)
+        rclpy.shutdown()
+
+    node.create_subscription(String, "early", keep, qos.JOB_GOAL)
+    publisher = sender.create_publisher(String, "early", qos.JOB_GOAL)
+    while publisher.get_subscription_count() == 0:
+        rclpy.spin_once(sender, timeout_sec=0.01)
+    publisher.publish(String(data="goal"))
+    assert publisher.wait_for_all_acked(Duration(seconds=10))  # in the node's queue, no executor yet
+    timer = threading.Timer(10.0, rclpy.shutdown)  # the spin's end, if it never comes
+    timer.start()
+    spin(node)
+    timer.cancel()
+    sender.destroy_node()
+    assert got == ["goal"]

@@ -9,10 +9,10 @@ from concurrent.futures import Future, ThreadPoolExecutor
 
 from builtin_interfaces.msg import Duration, Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rclpy.callback_groups import CallbackGroup
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.serialization import deserialize_message
 from rclpy.time import Time as RosTime
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
@@ -64,23 +64,8 @@ def chunk_to_msg(chunk: Chunk) -> JointTrajectory:
     return msg
 
 
-class Polled(CallbackGroup):
-    """For a subscription the node takes from itself, on a timer: never in the executor's
-    wait set, so messages arriving faster than they are needed wake nothing."""
-
-    def can_execute(self, entity) -> bool:
-        return False
-
-    def beginning_execution(self, entity) -> bool:
-        return False
-
-    def ending_execution(self, entity) -> None:
-        pass
-
-
 def take_latest(subscription):
-    """The newest message waiting in a polled subscription (None if none): its queue keeps
-    only the latest (qos.LATEST), and whatever else is queued is older."""
+    """The newest message waiting in a subscription (None if none)."""
     latest = None
     with subscription.handle:
         while (taken := subscription.handle.take_message(subscription.msg_type, subscription.raw)) is not None:
@@ -109,13 +94,12 @@ class PlannerNode(Node):
         self.reset_pub = self.create_publisher(String, topics.ALARM_RESET, qos.ALARM_RESET)
         self.create_subscription(String, topics.JOB_GOAL, self.on_goal, qos.JOB_GOAL)
         self.create_subscription(String, topics.JOB_CANCEL, self.on_cancel, qos.JOB_CANCEL)
-        # joint_states come at 1 kHz (many times that in simulation); the planner takes the
-        # latest every feedback_period of wall time, which is all progress, the stream's
-        # lookahead and the watchdog need. The job's end is exact regardless: its status
-        # carries the stream's own end time and cycle time, not the feedback's.
-        self.polled = Polled()
-        self.feedback_sub = self.create_subscription(JointState, topics.JOINT_STATES, lambda _: None, qos.LATEST,
-                                                     callback_group=self.polled)
+        # joint_states come at 1 kHz (many times that in simulation): each is only kept, as
+        # bytes, and the latest is read every feedback_period of wall time, which is all
+        # progress, the stream's lookahead and the watchdog need. The job's end is exact
+        # regardless: its status carries the stream's own end time, not the feedback's.
+        self.feedback_bytes: bytes | None = None
+        self.create_subscription(JointState, topics.JOINT_STATES, self.keep_feedback, qos.LATEST, raw=True)
         self.create_subscription(DiagnosticArray, topics.DIAGNOSTICS, self.on_diagnostics, qos.DIAGNOSTICS)
         self.latest_feedback_ns = 0
         self.wall = Clock(clock_type=ClockType.STEADY_TIME)
@@ -159,9 +143,9 @@ class PlannerNode(Node):
         job's setpoints ahead of the bridge's clock (also while feedback is slow to arrive:
         real time under CPU load). ``bridge_ns``: see advance."""
         self.take_clock()
-        msg = take_latest(self.feedback_sub)
-        if msg is not None:
-            self.on_feedback(msg)
+        if self.feedback_bytes is not None:
+            self.on_feedback(deserialize_message(self.feedback_bytes, JointState))
+            self.feedback_bytes = None
         else:
             self.admit_prepared()
         if self.latest_feedback_ns and self.trajectory_pub.get_subscription_count():
@@ -169,14 +153,14 @@ class PlannerNode(Node):
         self.watch_feedback()
 
     def take_clock(self) -> None:
-        """In simulation, the latest /clock, taken like the feedback: rclpy's time source
-        subscribes to it (use_sim_time) with a callback per message, a wake-up per 10 steps
-        of a bridge running many times faster than the wall clock."""
+        """In simulation, the latest /clock now: rclpy's time source (use_sim_time) sets it
+        from a callback per message, which waits behind this one (and behind planning)."""
         for sub in self.subscriptions:
-            if sub.msg_type is ClockMsg:
-                sub.callback_group = self.polled  # the time source's own subscription, taken here
-                if (msg := take_latest(sub)) is not None:
-                    self.get_clock().set_ros_time_override(RosTime.from_msg(msg.clock))
+            if sub.msg_type is ClockMsg and (msg := take_latest(sub)) is not None:
+                self.get_clock().set_ros_time_override(RosTime.from_msg(msg.clock))
+
+    def keep_feedback(self, data: bytes) -> None:
+        self.feedback_bytes = data
 
     def publish(self, out: Output) -> None:
         # The bridge's clock now, not at the feedback this output was made for (real time:

@@ -7,7 +7,7 @@ import sys
 from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
 
-from builtin_interfaces.msg import Duration, Time
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -17,9 +17,9 @@ from rclpy.time import Time as RosTime
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
-from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+from trajectory_msgs.msg import JointTrajectory
 
-from cnc_msgs_py import qos, topics
+from cnc_msgs_py import qos, topics, trajectory_bytes
 from cnc_msgs_py.machine import load_machine
 from cnc_msgs_py.node import run_node
 from cnc_msgs_py.parameters import Param, declare, value
@@ -27,7 +27,6 @@ from cnc_msgs_py.status import Status, decode_cancel
 from cnc_msgs_py.units import NS
 
 from cnc_planner.executive import Executive, Output, Settings
-from cnc_planner.streaming import Chunk
 
 
 PARAMETERS = {
@@ -49,19 +48,6 @@ PARAMETERS = {
     "feedback_timeout": Param(2.0, "wall time without joint_states before a running job aborts", "s",
                               (0.1, 60.0)),
 }
-
-
-def chunk_to_msg(chunk: Chunk) -> JointTrajectory:
-    msg = JointTrajectory()
-    msg.header.stamp = Time(sec=chunk.stamp_ns // NS, nanosec=chunk.stamp_ns % NS)
-    msg.joint_names = list(chunk.joints)
-    for i in range(len(chunk.positions)):
-        offset = i * chunk.period_ns
-        msg.points.append(JointTrajectoryPoint(
-            positions=chunk.positions[i].tolist(), velocities=chunk.velocities[i].tolist(),
-            accelerations=chunk.accelerations[i].tolist(),
-            time_from_start=Duration(sec=offset // NS, nanosec=offset % NS)))
-    return msg
 
 
 def take_latest(subscription):
@@ -169,7 +155,9 @@ class PlannerNode(Node):
         self.take_clock()
         self.executive.retime(out, max(self.latest_feedback_ns, self.clock_ns()))
         for chunk in out.chunks:
-            self.trajectory_pub.publish(chunk_to_msg(chunk))
+            self.trajectory_pub.publish(trajectory_bytes.encode(chunk.joints, chunk.stamp_ns, chunk.period_ns,
+                                                                chunk.positions, chunk.velocities,
+                                                                chunk.accelerations))
         for event in out.events:
             self.events_pub.publish(String(data=json.dumps(event)))
         for status in out.statuses:

@@ -30,7 +30,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory
 
-from cnc_msgs_py import qos, topics
+from cnc_msgs_py import qos, topics, trajectory_bytes
 from cnc_msgs_py.machine import MachineError, load_machine
 from cnc_msgs_py.node import run_node
 from cnc_msgs_py.parameters import Param, declare, value
@@ -111,14 +111,15 @@ class BridgeNode(LifecycleNode):
         # Bounded machine time per callback (0.1 s) so that setpoint chunks (a stop!) are
         # taken between batches; the loop steps them in blocks (ServoLoop.run).
         self.max_steps = value(self, "steps_per_callback")
-        self.joints = list(machine.joint_names)
+        self.joints = tuple(machine.joint_names)
         self.state_pub = self.create_publisher(JointState, topics.JOINT_STATES, qos.JOINT_STATES)
         # One serialized message refilled for every sample (feedback_msg.py).
         self.state_msg = FeedbackBytes(self.joints)
         self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS)
         self.clock_pub = self.create_publisher(Clock, topics.CLOCK, qos.CLOCK) if self.simulation else None
         self.inputs = [
-            self.create_subscription(JointTrajectory, topics.JOINT_TRAJECTORY, self.on_trajectory, qos.JOINT_TRAJECTORY),
+            self.create_subscription(JointTrajectory, topics.JOINT_TRAJECTORY, self.on_trajectory, qos.JOINT_TRAJECTORY,
+                                     raw=True),  # read in place (trajectory_bytes.py)
             # Fault injection for tests and commissioning: {"joint": "x", "offset": 0.005} (m or rad).
             self.create_subscription(String, topics.INJECT_FAULT, self.on_inject, qos.INJECT_FAULT),
             self.create_subscription(String, topics.ALARM_RESET, self.on_reset, qos.ALARM_RESET),
@@ -197,13 +198,11 @@ class BridgeNode(LifecycleNode):
 
     # -- topics ----------------------------------------------------------------------------
 
-    def on_trajectory(self, msg: JointTrajectory) -> None:
-        head = msg.header.stamp.sec * NS + msg.header.stamp.nanosec
-        times = np.array([head + p.time_from_start.sec * NS + p.time_from_start.nanosec for p in msg.points], dtype=np.int64)
+    def on_trajectory(self, data: bytes) -> None:
         try:
-            p, v, a = (np.array([getattr(pt, k) for pt in msg.points], dtype=float)
-                       for k in ("positions", "velocities", "accelerations"))
-            self.loop.accept(list(msg.joint_names), times, p, v, a, self.t_ns)
+            chunk = trajectory_bytes.decode(data, self.joints)
+            self.loop.accept(chunk.joints, chunk.times_ns, chunk.positions, chunk.velocities, chunk.accelerations,
+                             self.t_ns)
         except (SetpointError, ValueError) as err:
             self.rejected = f"refused setpoints: {err}"
             self.get_logger().error(self.rejected)

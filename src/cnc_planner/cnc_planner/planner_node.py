@@ -40,9 +40,9 @@ PARAMETERS = {
     "planning_lookahead": Param(1.0, "setpoints kept ahead of the feedback while a goal is planned beside the "
                                      "running job (planning slows the stream's thread), and the longest a "
                                      "cancel then waits", "s", (0.05, 5.0)),
-    "feedback_period": Param(0.02, "wall time between takes of the latest joint_states (progress, the stream's "
+    "feedback_period": Param(0.02, "wall time between reads of the latest joint_states (progress, the stream's "
                                    "top-up, the end of the job, the feedback watchdog); the bridge publishes "
-                                   "them at 1 kHz, and a Python wake-up per message cost 0.35 of a CPU", "s",
+                                   "them at 1 kHz, and each is only kept until the next arrives", "s",
                              (0.001, 0.1),
                              read_only=True),
     "feedback_timeout": Param(2.0, "wall time without joint_states before a running job aborts", "s",

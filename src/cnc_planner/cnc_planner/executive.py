@@ -207,7 +207,10 @@ class Executive:
         stream = job.stream
         planning = planning or job.plan.planning
         ahead = self.settings.planning_lookahead_ns if planning else self.settings.lookahead_ns
-        while not stream.done and stream.served_until_ns < max(now_ns, clock_ns) + ahead:
+        # The first chunk goes out at once, start_delay ahead: held back until the lookahead
+        # reached it, it waited that long on an idle bridge's wall-paced clock and then came
+        # with less than min_lead, so it was always re-timed (a job started ~0.9 s late).
+        while not stream.done and (stream.next_index == 0 or stream.served_until_ns < max(now_ns, clock_ns) + ahead):
             chunk = stream.next_chunk()
             out.chunks.append(chunk)
             self._events_until(job, chunk.end_ns, out)

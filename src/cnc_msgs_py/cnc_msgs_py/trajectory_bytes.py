@@ -1,9 +1,10 @@
 """joint_trajectory chunks as serialized bytes: written by the planner and read by the
 bridge with numpy, without a Python object per setpoint.
 
-A 100-point JointTrajectory cost the planner ~0.1 ms to build as Python messages and rclpy
-as much again to convert, and the bridge as much again to convert back: together about a
-quarter of each node's CPU in simulation. The layout is rclpy's own: one message of the
+A 100-point chunk of 4 joints, measured on the loaded 2-CPU host: built as Python messages
+1.0 ms and serialized 0.4 ms, against 15 us written here; deserialized and made arrays
+1.9 ms, against 68 us read here (a quarter of each node's busy time in simulation, by
+py-spy, before). The layout is rclpy's own: one message of the
 same joints and point count, serialized by rclpy with sentinel values, shows where every
 value sits; the points repeat at a fixed stride. A message read is taken this way only if
 all its other bytes (joint names, sequence lengths, empty frame_id and efforts) equal

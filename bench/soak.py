@@ -97,7 +97,7 @@ def run(doc: dict, out: Path, simulation: bool = True) -> dict:
 def check_recording(bag: Path) -> dict:
     """Chunk and feedback continuity and the progress reports, streamed from the bag."""
     from rosbags.highlevel import AnyReader
-    from cnc_planner.runner import header_stamp_ns
+    from cnc_msgs_py.header_bytes import read_stamp
     from cnc_analysis.recording import TYPESTORE
 
     chunks = gaps = overlaps = points = 0
@@ -109,7 +109,7 @@ def check_recording(bag: Path) -> dict:
         conns = [c for c in reader.connections if c.topic.endswith(("joint_trajectory", "job_status", "joint_states"))]
         for conn, _, raw in reader.messages(connections=conns):
             if conn.topic.endswith("joint_states"):  # millions: the stamp read from the CDR, not deserialised
-                feedback_t.append(header_stamp_ns(raw))
+                feedback_t.append(read_stamp(raw))
                 continue
             msg = reader.deserialize(raw, conn.msgtype)
             if conn.topic.endswith("job_status"):

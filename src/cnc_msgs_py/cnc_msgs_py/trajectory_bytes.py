@@ -12,7 +12,6 @@ that template's; any other JointTrajectory is deserialized by rclpy as usual.
 """
 from __future__ import annotations
 
-import struct
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -21,9 +20,9 @@ from builtin_interfaces.msg import Duration
 from rclpy.serialization import deserialize_message, serialize_message
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from .header_bytes import STAMP, STAMP_OFFSET, read_stamp, write_stamp
 from .units import NS
 
-STAMP_OFFSET = 4  # after the CDR encapsulation header: header.stamp.sec, .nanosec
 FIELDS = ("positions", "velocities", "accelerations")
 
 
@@ -77,11 +76,11 @@ def layout(joints: tuple[str, ...], count: int) -> Layout:
         return at
 
     fields = tuple(find(np.asarray(sentinel[f][0], dtype="<f8").tobytes()) for f in range(3))
-    time = find(struct.pack("<iI", 3_000_000, 5_000_000))
-    stride = (find(struct.pack("<iI", 3_000_001, 5_000_001)) - time) if count > 1 else 0
+    time = find(STAMP.pack(3_000_000, 5_000_000))
+    stride = (find(STAMP.pack(3_000_001, 5_000_001)) - time) if count > 1 else 0
     end = time + (count - 1) * stride + 8  # rclpy's buffer runs on with bytes it reserved
     values = np.zeros(end, dtype=bool)
-    values[STAMP_OFFSET:STAMP_OFFSET + 8] = True
+    values[STAMP_OFFSET:STAMP_OFFSET + STAMP.size] = True
     for i in range(count):
         for f, field in enumerate(fields):
             at = field + i * stride
@@ -98,7 +97,7 @@ def encode(joints: tuple[str, ...], stamp_ns: int, period_ns: int, positions: np
     count = len(positions)
     form = layout(tuple(joints), count)
     buffer = bytearray(form.template)
-    struct.pack_into("<iI", buffer, STAMP_OFFSET, *divmod(stamp_ns, NS))
+    write_stamp(buffer, stamp_ns)
     for field, array in zip(form.fields, (positions, velocities, accelerations)):
         form.values(buffer, field, count, len(joints))[:] = array
     offsets = np.arange(count, dtype=np.int64) * period_ns
@@ -115,9 +114,8 @@ def decode(data: bytes, joints: tuple[str, ...]) -> Setpoints:
         form = layout(joints, count)
         raw = np.frombuffer(data, dtype=np.uint8)
         if np.array_equal(raw[form.fixed], np.frombuffer(form.template, np.uint8)[form.fixed]):
-            sec, nanosec = struct.unpack_from("<iI", data, STAMP_OFFSET)
             times = form.times(data, count).astype(np.int64)
-            return Setpoints(list(joints), sec * NS + nanosec + times[:, 0] * NS + times[:, 1],
+            return Setpoints(list(joints), read_stamp(data) + times[:, 0] * NS + times[:, 1],
                              *(form.values(data, field, count, len(joints)).copy() for field in form.fields))
     return from_message(deserialize_message(data, JointTrajectory))
 

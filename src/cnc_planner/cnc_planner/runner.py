@@ -11,7 +11,6 @@ import importlib
 import json
 import os
 import signal
-import struct
 import subprocess
 import sys
 import time
@@ -27,6 +26,7 @@ from std_msgs.msg import String
 
 from cnc_msgs_py import qos, topics
 from cnc_msgs_py.discovery import DDS_VARIABLES, dds_environment
+from cnc_msgs_py.header_bytes import read_stamp
 from cnc_msgs_py.status import FINAL_STATES
 from cnc_msgs_py.units import NS
 from cnc_analysis.recording import RECORDED, BagWriter
@@ -82,14 +82,6 @@ def _stamp_ns(msg) -> int:
     return msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
 
 
-def header_stamp_ns(cdr: bytes) -> int:
-    """header.stamp of a serialized message that starts with a std_msgs/Header: after the
-    4-byte CDR encapsulation come sec (int32) and nanosec (uint32), little endian. Read
-    directly because every joint_states passes through here."""
-    sec, nanosec = struct.unpack_from("<iI", cdr, 4)
-    return sec * 1_000_000_000 + nanosec
-
-
 class Recorder(Node):
     """Records every CNC topic to the bag (raw CDR) and follows the job's status."""
 
@@ -115,7 +107,7 @@ class Recorder(Node):
             if topic == "/clock":
                 self.sim_ns = _stamp_ns(deserialize_message(data, message_class(RECORDED["/clock"])))
             elif topic == "joint_states":
-                self.feedback_ns = header_stamp_ns(data)
+                self.feedback_ns = read_stamp(data)
             # Bag time: the machine's time (sim time, or the wall clock in real-time mode).
             self.bag.write(name, max(self.sim_ns, self.feedback_ns), data)
             if topic == "job_status":

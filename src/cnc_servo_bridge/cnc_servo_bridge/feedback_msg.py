@@ -9,15 +9,13 @@ arrays) do not change.
 """
 from __future__ import annotations
 
-import struct
 
 import numpy as np
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 
-from cnc_msgs_py.units import NS
+from cnc_msgs_py.header_bytes import write_stamp
 
-STAMP_OFFSET = 4  # after the CDR encapsulation header: header.stamp.sec, .nanosec
 
 
 class FeedbackBytes:
@@ -40,7 +38,7 @@ class FeedbackBytes:
     def fill(self, stamp_ns: int, positions: np.ndarray, velocities: np.ndarray) -> bytes:
         """The serialized JointState of one sample."""
         buffer = self.buffer
-        struct.pack_into("<iI", buffer, STAMP_OFFSET, *divmod(stamp_ns, NS))
+        write_stamp(buffer, stamp_ns)
         buffer[self.position:self.position + self.size] = np.asarray(positions, dtype="<f8").tobytes()
         buffer[self.velocity:self.velocity + self.size] = np.asarray(velocities, dtype="<f8").tobytes()
         return bytes(buffer)

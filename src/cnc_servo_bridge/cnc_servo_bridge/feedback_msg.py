@@ -9,6 +9,7 @@ arrays) do not change.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 
 import numpy as np
 from rclpy.serialization import serialize_message
@@ -17,14 +18,13 @@ from sensor_msgs.msg import JointState
 from cnc_msgs_py.header_bytes import write_stamp
 
 
-
 class FeedbackBytes:
     """A JointState for fixed joints, refilled per sample and returned as CDR bytes."""
 
-    def __init__(self, joints: list[str]) -> None:
+    def __init__(self, joints: Sequence[str]) -> None:
         count = len(joints)
         position, velocity = np.arange(1.5, count + 1.5), np.arange(-1.5, -count - 1.5, -1.0)
-        template = bytearray(serialize_message(JointState(name=joints, position=position.tolist(),
+        template = bytearray(serialize_message(JointState(name=list(joints), position=position.tolist(),
                                                           velocity=velocity.tolist())))
         self.position = template.find(position.tobytes())
         self.velocity = template.find(velocity.tobytes())

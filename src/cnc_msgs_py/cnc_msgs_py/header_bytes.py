@@ -1,6 +1,7 @@
-"""header.stamp of a serialized (CDR) message that starts with a std_msgs/Header: after
-the 4-byte encapsulation header come sec (int32) and nanosec (uint32), little endian.
-Read and written in place on the 1 kHz paths (joint_states, chunks, the recorder)."""
+"""header.stamp of a serialized (CDR) message that starts with a std_msgs/Header (or the
+time of a rosgraph_msgs/Clock, laid out alike): after the 4-byte encapsulation header come
+sec (int32) and nanosec (uint32), little endian. Read and written in place on the 1 kHz
+paths (joint_states, chunks, the recorder's /clock)."""
 from __future__ import annotations
 
 import struct

@@ -21,6 +21,7 @@ import rclpy
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
+from rclpy.task import Future
 from builtin_interfaces.msg import Time
 from std_msgs.msg import String
 
@@ -38,7 +39,9 @@ QOS = {
 }
 SETTLE_S = 0.2  # sim time recorded after the final status, so the drives' settling shows
 PROCESS_CHECK_S = 0.1  # wall time between checks of the deadline and the node processes
-ACK_EVERY_NS = 10_000_000  # tell the bridge what has been written every 10 ms of its time
+SPIN_S = 0.05  # wall time a spin waits for a reason to return (the recorder's wake)
+ACK_EVERY_NS = 25_000_000  # tell the bridge what has been written every 25 ms of its time:
+# a quarter of its window (RECORDER_WINDOW_NS), each acknowledgement a DDS write (~0.1 ms)
 
 
 class RunError(RuntimeError):
@@ -78,10 +81,6 @@ def message_class(msgtype: str) -> type:
     return getattr(importlib.import_module(f"{package}.msg"), name)
 
 
-def _stamp_ns(msg) -> int:
-    return msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
-
-
 class Recorder(Node):
     """Records every CNC topic to the bag (raw CDR) and follows the job's status."""
 
@@ -98,18 +97,23 @@ class Recorder(Node):
         # Backpressure: a simulated bridge does not run more than a bounded window ahead of this.
         self.ack_pub = self.create_publisher(Time, topics.RECORDED_UNTIL, qos.RECORDED_UNTIL)
         self.acked_ns = 0
+        self.wake = Future()  # done when the session has something to check or acknowledge
         for topic, msgtype in RECORDED.items():
             name = topic_name(topic, namespace)
             self.create_subscription(message_class(msgtype), name, self._writer(name, topic), QOS[topic], raw=True)
 
     def _writer(self, name: str, topic: str) -> Callable[[bytes], None]:
         def write(data: bytes) -> None:
-            if topic == "/clock":
-                self.sim_ns = _stamp_ns(deserialize_message(data, message_class(RECORDED["/clock"])))
+            if topic == "/clock":  # rosgraph_msgs/Clock: its Time where a Header's stamp is
+                self.sim_ns = read_stamp(data)
             elif topic == "joint_states":
                 self.feedback_ns = read_stamp(data)
+                if not 0 <= self.feedback_ns - self.acked_ns < ACK_EVERY_NS and not self.wake.done():
+                    self.wake.set_result(topic)
             # Bag time: the machine's time (sim time, or the wall clock in real-time mode).
             self.bag.write(name, max(self.sim_ns, self.feedback_ns), data)
+            if topic in ("job_status", "/diagnostics") and not self.wake.done():
+                self.wake.set_result(topic)  # a job's state or the nodes' liveness: conditions
             if topic == "job_status":
                 status = json.loads(deserialize_message(data, String).data)
                 self.statuses.append(status)
@@ -123,10 +127,9 @@ class Recorder(Node):
         return write
 
     def acknowledge(self) -> None:
-        """Tell the bridge what has been written (recorded_until). Called between spins,
-        not per message: the executor takes every queued message in one spin, so acks
-        from within would let the clock run on while the caller's condition (a job's
-        end, an instant to cancel at) waits to be checked."""
+        """Tell the bridge what has been written (recorded_until), between spins only: the
+        caller's condition (a job's end, an instant to cancel at) is checked first, so
+        no acknowledgement lets the clock run on past it."""
         # (not only forwards: a restarted bridge starts its clock again)
         if not 0 <= self.feedback_ns - self.acked_ns < ACK_EVERY_NS:
             self.acked_ns = self.feedback_ns
@@ -244,7 +247,6 @@ class Session:
         deadline = time.monotonic() + timeout
         next_check = 0.0
         while not done():
-            # A spin takes one message (thousands a second in simulation): checks per PROCESS_CHECK_S.
             if (now := time.monotonic()) >= next_check:
                 if now > deadline:
                     raise RunError(what)
@@ -252,7 +254,9 @@ class Session:
                 if dead:
                     raise RunError(f"{what}: the {dead[0]} exited with code {self.procs[dead[0]].returncode}")
                 next_check = now + PROCESS_CHECK_S
-            self.executor.spin_once(timeout_sec=0.05)
+            # Messages until the recorder wakes (an ack due, a status), not one per call.
+            self.recorder.wake = Future()
+            self.executor.spin_until_future_complete(self.recorder.wake, timeout_sec=SPIN_S)
             if self.progress is not None:
                 for status in self.recorder.statuses[self._shown:]:
                     self.progress(status)

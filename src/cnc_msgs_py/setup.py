@@ -23,7 +23,7 @@ setup(
         (f"share/{PACKAGE}/config/machines", config("machines/*.yaml")),
         (f"share/{PACKAGE}/config", config("work_offsets.yaml")),
     ],
-    install_requires=["setuptools", "tqdm>=4.66"],
+    install_requires=["setuptools", "tqdm>=4.66", "rosbags>=0.11"],
     zip_safe=True,
     maintainer="CNC control team",
     maintainer_email="dev@cnc.local",

@@ -1,6 +1,9 @@
 """joint_trajectory chunks as bytes: what the planner writes reads back as the message it
 stands for (rclpy, and the bag reader rosbags), and the bridge's reader returns the same
 setpoints for these bytes as for any JointTrajectory, which it deserializes as usual."""
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from builtin_interfaces.msg import Duration
@@ -75,6 +78,27 @@ def test_the_planners_chunks_are_read_in_place(monkeypatch) -> None:
             p, v, a = chunk(count, len(joints), 7)
             read = trajectory_bytes.decode(trajectory_bytes.encode(joints, 10, 1000, p, v, a), joints)
             assert np.array_equal(read.accelerations, a) and read.times_ns[-1] == 10 + (count - 1) * 1000
+
+
+def test_chunks_written_in_another_process_are_read_in_place(monkeypatch) -> None:
+    """The planner and the bridge are two processes: the template each builds must be the
+    same bytes (rclpy's alignment padding held whatever its buffer did before, so the
+    bridge read most chunks through rclpy)."""
+    counts = (2, 3, 50, 100, 101)
+    writer = ("import sys, numpy as np; from cnc_msgs_py import trajectory_bytes as tb\n"
+              "junk = [bytearray(b'\\xff' * 4096 * k) for k in range(1, 64)]\n"  # a heap unlike this one's
+              f"for n in {counts}:\n"
+              "    p = np.arange(n * 4, dtype=float).reshape(n, 4)\n"
+              "    print(tb.encode(('x', 'y', 'z', 'spindle'), 10, 1000, p, -p, 2 * p).hex())")
+    out = subprocess.run([sys.executable, "-c", writer], capture_output=True, text=True, check=True).stdout.split()
+
+    def refuse(*_):
+        raise AssertionError("deserialized through rclpy")
+
+    monkeypatch.setattr(trajectory_bytes, "deserialize_message", refuse)
+    for n, text in zip(counts, out, strict=True):
+        read = trajectory_bytes.decode(bytes.fromhex(text), ("x", "y", "z", "spindle"))
+        assert read.positions.ravel().tolist() == list(range(n * 4)) and read.times_ns[-1] == 10 + (n - 1) * 1000
 
 
 def test_an_empty_trajectory_is_read_through_rclpy() -> None:

@@ -244,3 +244,24 @@ def test_a_hole_given_twice_or_a_hair_apart_plans_and_stays_safe():
     fb, _ = DriveModel(MACHINE, 1e-3, plan.joints).simulate(p, v, a)
     result = analyze_drilling(t, fb[:, 0], fb[:, 1], fb[:, 2], holes, cycle.r_z, cycle.xy_tolerance)
     assert result["safety_violations"] == 0
+
+
+@pytest.mark.parametrize("hole", [(0.0, 0.0), (2e-6, 0.0), (0.005, 0.0), (0.01, 0.01), (0.3, -0.2), (-0.45, 0.0)])
+def test_s1_tolerance_crossings_equal_a_scan_of_the_whole_move(hole) -> None:
+    """S1 leaves and re-enters the hole's tolerance where sampling all of the move at
+    CROSSING_STEP says, though only its ends are sampled (short, long and null moves)."""
+    from cnc_planner.kinds.drill.xy_moves import CROSSING_STEP, _limited, _xy_move
+
+    p0, tol = (0.0, 0.0), 1e-5
+    xy = _xy_move(MACHINE, p0, hole, tol)
+    move, joints = _limited(MACHINE, p0, hole, (1.0, 1.0, 1.0))
+    if move is None:
+        assert xy.move is None and xy.leave == np.inf and xy.arrive == 0.0
+        return
+    ts = np.arange(0.0, move.duration + CROSSING_STEP, CROSSING_STEP)
+    p = move.sample_all(np.minimum(ts, move.duration))[0]
+    axis = [("x", "y").index(j) for j in joints]
+    left = np.nonzero(np.linalg.norm(p - np.take(p0, axis), axis=1) > tol)[0]
+    away = np.nonzero(np.linalg.norm(p - np.take(hole, axis), axis=1) > tol)[0]
+    assert xy.leave == (max(ts[left[0]] - CROSSING_STEP, 0.0) if len(left) else np.inf)
+    assert xy.arrive == (ts[away[-1]] + CROSSING_STEP if len(away) else 0.0)

@@ -30,12 +30,13 @@ from cnc_planner.kinds.drill.z_axis import ZAxis
 from cnc_planner.motion.builder import PlanBuilder
 
 
-def plan_drilling(builder: PlanBuilder, cycle: DrillCycle) -> list[dict]:
+def plan_drilling(builder: PlanBuilder, cycle: DrillCycle, energies: bool = True) -> list[dict]:
     """Append the whole drilling cycle to ``builder`` (tool above R, at rest) and return,
     per hole: hole index, x, y, mode, the plan times s1, s1_end, s2 (Z leaves R'),
     r_down, s3 and r_up; for the overlapped cycle also apex_z (R'), air_time, air_accel
-    and air_energy (integral of a_z^2 dt over the air move into the hole: the proxy the
-    gentle variant lowers).
+    and, with ``energies``, air_energy (integral of a_z^2 dt over the air move into the
+    hole: the proxy the gentle variant lowers; sampled at 10 kHz, 6 % of a long plate's
+    planning, so a job that does not read it does not pay for it).
 
     The timing search runs the drive model from the cycle's start with the drives at
     rest there, as after any rapid.
@@ -55,7 +56,7 @@ def plan_drilling(builder: PlanBuilder, cycle: DrillCycle) -> list[dict]:
         emit = conventional(cycle, xy_moves, strokes)
         zeros = np.zeros(n)
         e_down, e_up = lag.safe_gaps(emit, t0, zeros, zeros, zeros, zeros)
-        return emit(builder, t0, e_down, e_up, full, True)
+        return emit(builder, t0, e_down, e_up, full, energies)
     # Command-level floors: X/Y may leave the hole only once Z is above R, and must be
     # back inside the tolerance before Z goes below R (in whole servo periods).
     period = cycle.servo_period
@@ -92,14 +93,14 @@ def plan_drilling(builder: PlanBuilder, cycle: DrillCycle) -> list[dict]:
         air_times = [info["r_down"] - u for info, u in zip(infos, ups)]
         starts = [(start["z"], 0.0, 0.0)] + [r.state for r in chosen[:-1]]
         accel = gentle_accels(lag, z, cycle, emit, t0, e_down, e_up, starts, air_times)
-    return emit(builder, t0, e_down, e_up, accel, True)
+    return emit(builder, t0, e_down, e_up, accel, energies)
 
 
 def plan_cycle(builder: PlanBuilder, cycle: DrillCycle) -> None:
-    """plan_drilling for a job: what this machine cannot drill is refused naming the job's
-    field (DrillError, or the vibration's JobError)."""
+    """plan_drilling for a job (its per-hole figures unread): what this machine cannot
+    drill is refused naming the job's field (DrillError, or the vibration's JobError)."""
     try:
-        plan_drilling(builder, cycle)
+        plan_drilling(builder, cycle, energies=False)
     except JobError:
         raise  # names its field already
     except ValueError as err:  # ruckig's own, in one line: it appends its whole input to its errors

@@ -34,6 +34,7 @@ from cnc_planner.motion.moves import Limits, RuckigMove, axis_limits, point_to_p
 
 XY = ("x", "y")
 CROSSING_STEP = 1e-4  # s, sampling of a command's tolerance crossings
+CROSSING_CHUNK = 256  # instants sampled at a time from either end: the crossings lie near the ends
 XY_LEAD_PERIODS = 8     # rest before an S1 move in its learning reference: room to lead
 XY_FIXED_PERIODS = 4    # of which uncorrected: the compensated command leads by the rest
 XY_COMMAND_LEAD = XY_LEAD_PERIODS - XY_FIXED_PERIODS + 1  # periods: from its last rest sample
@@ -102,16 +103,30 @@ def _xy_move(machine: Machine, p0: tuple[float, float], p1: tuple[float, float],
     if move is None:
         return XYMove(target, None, math.inf, 0.0)
     ts = np.arange(0.0, move.duration + CROSSING_STEP, CROSSING_STEP)
-    p = move.sample_all(np.minimum(ts, move.duration))[0]
     start = np.array([dict(zip(XY, p0))[j] for j in joints])
     end = np.array([target[j] for j in joints])
     # Conservative on the sampling grid: leave one step early, arrive one step late. A
     # move shorter than the tolerance (a hole given twice) never leaves it at all.
-    left = np.nonzero(np.linalg.norm(p - start, axis=1) > tol)[0]
-    away = np.nonzero(np.linalg.norm(p - end, axis=1) > tol)[0]
-    leave = max(ts[left[0]] - CROSSING_STEP, 0.0) if len(left) else math.inf
-    arrive = ts[away[-1]] + CROSSING_STEP if len(away) else 0.0
+    left = _outside(move, ts, start, tol, last=False)
+    away = _outside(move, ts, end, tol, last=True)
+    leave = max(ts[left] - CROSSING_STEP, 0.0) if left is not None else math.inf
+    arrive = ts[away] + CROSSING_STEP if away is not None else 0.0
     return XYMove(target, move, leave, arrive, tuple(joints))
+
+
+def _outside(move: RuckigMove, ts: np.ndarray, point: np.ndarray, tol: float, last: bool) -> int | None:
+    """Index of the first instant of ts (the last, with ``last``) at which the move is
+    farther than tol from point, or None. Sampled CROSSING_CHUNK instants at a time from
+    that end: the same index as sampling all of ts (each instant's sample and distance
+    are its own), without sampling the middle of the move."""
+    n = len(ts)
+    for k in range(0, n, CROSSING_CHUNK):
+        lo, hi = (max(n - k - CROSSING_CHUNK, 0), n - k) if last else (k, min(k + CROSSING_CHUNK, n))
+        p = move.sample_all(np.minimum(ts[lo:hi], move.duration))[0]
+        far = np.nonzero(np.linalg.norm(p - point, axis=1) > tol)[0]
+        if len(far):
+            return lo + int(far[-1] if last else far[0])
+    return None
 
 
 def _moved_axes(p0: tuple[float, float], p1: tuple[float, float]) -> list[str]:

@@ -108,12 +108,8 @@ class Recorder(Node):
                 self.sim_ns = read_stamp(data)
             elif topic == "joint_states":
                 self.feedback_ns = read_stamp(data)
-                if not 0 <= self.feedback_ns - self.acked_ns < ACK_EVERY_NS and not self.wake.done():
-                    self.wake.set_result(topic)
             # Bag time: the machine's time (sim time, or the wall clock in real-time mode).
             self.bag.write(name, max(self.sim_ns, self.feedback_ns), data)
-            if topic in ("job_status", "/diagnostics") and not self.wake.done():
-                self.wake.set_result(topic)  # a job's state or the nodes' liveness: conditions
             if topic == "job_status":
                 status = json.loads(deserialize_message(data, String).data)
                 self.statuses.append(status)
@@ -124,16 +120,24 @@ class Recorder(Node):
                 self.planner_heartbeats += any(s.name.startswith("cnc_planner") for s in msg.status)
                 self.pids_heard.update(int(kv.value) for s in msg.status if s.hardware_id == self.get_namespace()
                                        for kv in s.values if kv.key == topics.PID_KEY)
+            # A job's state and the nodes' liveness are what the session's conditions read.
+            if (topic in ("job_status", "/diagnostics") or self.ack_due) and not self.wake.done():
+                self.wake.set_result(topic)
         return write
 
     def acknowledge(self) -> None:
         """Tell the bridge what has been written (recorded_until), between spins only: the
         caller's condition (a job's end, an instant to cancel at) is checked first, so
         no acknowledgement lets the clock run on past it."""
-        # (not only forwards: a restarted bridge starts its clock again)
-        if not 0 <= self.feedback_ns - self.acked_ns < ACK_EVERY_NS:
+        if self.ack_due:
             self.acked_ns = self.feedback_ns
             self.ack_pub.publish(Time(sec=self.feedback_ns // NS, nanosec=self.feedback_ns % NS))
+
+    @property
+    def ack_due(self) -> bool:
+        """ACK_EVERY_NS recorded since the last acknowledgement (or the bridge's clock went
+        back: a restarted bridge starts it again)."""
+        return not 0 <= self.feedback_ns - self.acked_ns < ACK_EVERY_NS
 
     def ready(self, own: set[int]) -> bool:
         """Planner listening for goals and talking, and bridge publishing feedback, both

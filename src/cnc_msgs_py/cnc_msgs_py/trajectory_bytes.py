@@ -6,41 +6,27 @@ A 100-point chunk of 4 joints, measured on the quiet 2-CPU host: built as Python
 0.8 ms, against 19 us read here (a quarter of each node's busy time in simulation, by
 py-spy, before). The layout is rclpy's own: one message of the same joints and point
 count, serialized by rclpy with sentinel values, shows where every value sits; the points
-repeat at a fixed stride. Its alignment padding is zeroed by a round trip through rosbags'
-serializer: rclpy leaves padding as whatever its buffer held, so the planner's template
-and the bridge's differed (two processes) and the bridge read nearly every chunk through
-rclpy. A message read is taken this way only if all its other bytes (joint names,
-sequence lengths, empty frame_id and efforts, zero padding) equal that template's; any
-other JointTrajectory is deserialized by rclpy as usual.
+repeat at a fixed stride; its padding is zeroed (cdr_template.py). A message read is
+taken this way only if all its other bytes (joint names, sequence lengths, empty
+frame_id and efforts, zero padding) equal that template's; any other JointTrajectory is
+deserialized by rclpy as usual.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cache, lru_cache
+from functools import lru_cache
 
 import numpy as np
 from builtin_interfaces.msg import Duration
 from rclpy.serialization import deserialize_message, serialize_message
-from rosbags.typesys import Stores, get_typestore
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from .cdr_template import offset_of, zero_padding
 from .header_bytes import STAMP, STAMP_OFFSET, read_stamp, write_stamp
 from .units import NS
 
 FIELDS = ("positions", "velocities", "accelerations")
 TYPE = "trajectory_msgs/msg/JointTrajectory"
-
-
-@cache
-def _typestore():
-    """rosbags' message types (0.1 s to build: only once a layout is first needed)."""
-    return get_typestore(Stores.ROS2_JAZZY)
-
-
-def zero_padding(data: bytes) -> bytearray:
-    """The same JointTrajectory with its alignment padding zeroed (rosbags writes it so)."""
-    store = _typestore()
-    return bytearray(store.serialize_cdr(store.deserialize_cdr(data, TYPE), TYPE))
 
 
 @dataclass(frozen=True)
@@ -88,10 +74,7 @@ def layout(joints: tuple[str, ...], count: int) -> Layout:
     data = bytearray(serialize_message(msg))
 
     def find(value: bytes) -> int:
-        at = data.find(value)
-        if at < 0 or data.find(value, at + 1) >= 0:
-            raise ValueError("joint_trajectory: a value not found once in rclpy's serialization")
-        return at
+        return offset_of(data, value, "joint_trajectory")
 
     fields = tuple(find(np.asarray(sentinel[f][0], dtype="<f8").tobytes()) for f in range(3))
     time = find(STAMP.pack(3_000_000, 5_000_000))
@@ -106,7 +89,7 @@ def layout(joints: tuple[str, ...], count: int) -> Layout:
                 raise ValueError("joint_trajectory: points not at a fixed stride in rclpy's serialization")
             values[at:at + 8 * n] = True
         values[time + i * stride:time + i * stride + STAMP.size] = True
-    template = bytes(zero_padding(bytes(data[:end])))
+    template = bytes(zero_padding(bytes(data[:end]), TYPE))
     return Layout(template, stride, fields, time, ~values, np.frombuffer(template, np.uint8)[~values])
 
 

@@ -1,5 +1,8 @@
 """joint_states published as bytes read back as the message they stand for, by rclpy and
 by the bag reader (rosbags), at every joint count of the shipped machines."""
+import subprocess
+import sys
+
 import numpy as np
 from rclpy.serialization import deserialize_message
 from rosbags.typesys import Stores, get_typestore
@@ -21,3 +24,14 @@ def test_bytes_read_back_as_the_sample() -> None:
             assert list(msg.velocity) == velocities.tolist() and len(msg.effort) == 0
             bag_msg = store.deserialize_cdr(data, "sensor_msgs/msg/JointState")
             assert bag_msg.position.tolist() == positions.tolist() and bag_msg.name == joints
+
+
+def test_a_sample_is_the_same_bytes_in_every_process() -> None:
+    """The template's padding is zeroed: a sample does not carry whatever rclpy's buffer
+    held, so its bytes do not depend on the process that wrote them."""
+    writer = ("from cnc_servo_bridge.feedback_msg import FeedbackBytes\n"
+              "junk = [bytearray(b'\\xff' * 4096 * k) for k in range(1, 64)]\n"  # a heap unlike this one's
+              "print(FeedbackBytes(['x', 'y', 'z', 'spindle']).fill(7, [0.1, 0.2, 0.3, 0.4], [0.0] * 4).hex())")
+    there = subprocess.run([sys.executable, "-c", writer], capture_output=True, text=True, check=True).stdout.strip()
+    here = FeedbackBytes(["x", "y", "z", "spindle"]).fill(7, np.array([0.1, 0.2, 0.3, 0.4]), np.zeros(4))
+    assert bytes.fromhex(there) == here

@@ -45,12 +45,17 @@ class Lockstep:
         setpoint, so a job's last point (at rest) is stepped at once; after the underrun
         timeout it steps anyway, and the loop raises its buffer-ran-dry alarm and stops.
         A recorder that has fallen RECORDER_WINDOW_NS behind holds the clock until it
-        catches up (backpressure), unless it has been silent for RECORDER_TIMEOUT_S.
+        catches up (backpressure), unless it has been silent for RECORDER_TIMEOUT_S; idle
+        time then runs on from where it was held.
         """
         if self.recorded_ns is not None:
             if wall_s - self.recorder_heard > RECORDER_TIMEOUT_S:
                 self.recorded_ns = None  # the recorder is gone: run on without it
             elif t_ns - self.recorded_ns > RECORDER_WINDOW_NS:
+                if self.idle:
+                    # Idle time resumes from here, not with a burst catching up the wall
+                    # clock: a job scheduled on the held clock would start in the past.
+                    self.wall_start, self.sim_at_wall_start = wall_s, t_ns
                 return False
         if loop.starved(t_ns):
             if self.starved_since is None:

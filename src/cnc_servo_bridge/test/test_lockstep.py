@@ -131,6 +131,29 @@ def test_a_recorder_that_fell_silent_no_longer_holds_the_clock():
     assert lockstep.may_step(loop, t, RECORDER_TIMEOUT_S + 0.01)  # gone: the machine runs on
 
 
+def test_idle_time_held_by_a_recorder_runs_on_from_where_it_was_held():
+    """A recorder that stops reading holds the idle clock, then counts as gone: time runs
+    on from there at the wall's pace. Catching up the wall in one burst moved the clock a
+    second past what the planner had read, and the job it scheduled started in the past."""
+    loop = ServoLoop(MILL, MS)
+    lockstep = Lockstep(MS, TIMEOUT_S, 0, wall_s=0.0)
+    lockstep.recorded(0, wall_s=0.0)
+    t, wall = 0, 0.0
+    while wall < 0.5:
+        while lockstep.may_step(loop, t, wall):
+            loop.step(t)
+            t += MS
+        wall += 1e-3
+    assert t == RECORDER_WINDOW_NS + MS  # held one window ahead of the recorder
+    for wall in np.arange(0.5, RECORDER_TIMEOUT_S + 0.3, 1e-3):  # held, then the recorder gone
+        while lockstep.may_step(loop, t, wall):
+            loop.step(t)
+            t += MS
+    held_wall = RECORDER_TIMEOUT_S  # the last wall time the recorder still held the clock
+    stepped_since = (t - RECORDER_WINDOW_NS - MS) / 1e9
+    assert abs(stepped_since - (wall - held_wall)) < 3e-3, f"{stepped_since:.3f} s of sim in {wall - held_wall:.3f} s of wall"
+
+
 def test_real_time_steps_after_a_stall_let_the_queued_chunk_in_before_running_dry():
     """The bridge stalled 200 ms mid-move; the steps due reach past the buffer. It steps to
     the buffer's end, steps nothing once (the executor then delivers the queued chunk), and

@@ -14,8 +14,10 @@ import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 
-from cnc_msgs_py.client import CncClient
+from cnc_msgs_py import qos
+from cnc_msgs_py.client import RESEND_S, CncClient
 from cnc_msgs_py.qos import PLANNER_LEASE_S
+from cnc_msgs_py.status import Status
 from cnc_msgs_py.job import load_job
 from cnc_msgs_py.schema import JobError
 from cnc_planner.runner import Session
@@ -106,6 +108,15 @@ def test_client_submits_follows_waits_and_cancels_in_process(tmp_path):
             running = [s for s in seen if s["state"] == "running"]
             assert all(0.0 <= s["progress"] <= 1.0 and s["duration_s"] > 0 for s in running)
 
+            # The same goal again (a client's resend): answered with the job's latest status,
+            # not run again.
+            session.submit(json.dumps(load_job(move_job("cli-1", 15.0))))
+            deadline = time.monotonic() + 30
+            while [s["state"] for s in session.recorder.statuses if s["job_id"] == "cli-1"].count("succeeded") < 2:
+                assert time.monotonic() < deadline, "the repeated goal was not answered"
+                executor.spin_once(timeout_sec=0.05)
+            assert [s["state"] for s in session.recorder.statuses if s["job_id"] == "cli-1"].count("accepted") == 1
+
             # YAML text, canceled once it runs; a timeout is an exception, not a hang. 120 s of
             # feed, so that it is still running 0.3 s on and when the cancel comes unless the
             # simulation ran 100x real time (while this client spins, the recorder holds the
@@ -134,8 +145,43 @@ def test_client_submits_follows_waits_and_cancels_in_process(tmp_path):
             executor.remove_node(session.recorder)
             executor.remove_node(node)
             node.destroy_node()
-    goals = [json.loads(g)["job_id"] for g in read_run(tmp_path / "bag").goals]
+    goals = [json.loads(g)["job_id"] for g in dict.fromkeys(read_run(tmp_path / "bag").goals)]  # resends once
     assert goals == ["cli-1", "cli-2", "cli-1"]  # never bad-1
+
+
+def test_a_goal_the_planner_missed_is_sent_again_until_a_status_answers_it():
+    """A planner whose side of the DDS match came after the goal never sees it (a volatile
+    topic): the client sends the same goal again while it hears nothing of it. Here a
+    stand-in planner drops the first copy and answers the second."""
+    from std_msgs.msg import String
+
+    rclpy.init()
+    try:
+        planner, cell = rclpy.create_node("cnc_planner", namespace="/cnc"), rclpy.create_node("cell_controller")
+        executor = SingleThreadedExecutor()
+        executor.add_node(planner)
+        executor.add_node(cell)
+        heard: list[tuple[str, float]] = []
+        status_pub = planner.create_publisher(String, "job_status", qos.JOB_STATUS)
+
+        def on_goal(msg: String) -> None:
+            heard.append((msg.data, time.monotonic()))
+            if len(heard) == 2:
+                job_id = json.loads(msg.data)["job_id"]
+                for state in ("accepted", "succeeded"):
+                    status_pub.publish(String(data=Status(job_id, state).encode()))
+        planner.create_subscription(String, "job_goal", on_goal, qos.JOB_GOAL)
+        client = CncClient(cell, namespace="/cnc", executor=executor)
+        job_id = client.submit(move_job("resent-1", 5.0))
+        assert client.wait(job_id, timeout=30)["state"] == "succeeded"
+        assert len(heard) == 2 and heard[0][0] == heard[1][0]  # the same goal, byte for byte
+        assert heard[1][1] - heard[0][1] >= RESEND_S - 0.05
+        end = time.monotonic() + 2 * RESEND_S  # answered: sent no more
+        while time.monotonic() < end:
+            executor.spin_once(timeout_sec=0.05)
+        assert len(heard) == 2
+    finally:
+        rclpy.try_shutdown()
 
 
 def test_client_follows_another_controllers_job_and_says_when_the_planner_is_lost(tmp_path):

@@ -14,27 +14,19 @@ nav2_simple_commander (in snake_case, without a polling loop or thread of its ow
     final = client.wait(job_id, timeout=120.0)              # spins the node until final
     print(final["state"], final["cycle_time_s"])
 
-The bridge is a managed (lifecycle) node; a cell controller takes a machine down and up
-again through its standard lifecycle services::
-
-    client.bridge_transition("deactivate")   # controlled stop, the running job aborts
-    client.bridge_transition("activate")     # drives on: the next job may run
-    client.bridge_state()                    # 'active'
+``bridge_transition("deactivate")`` (a controlled stop), ``("activate")`` and ``bridge_state()``
+drive the bridge's standard lifecycle services.
 
 A job is validated whole with the planner's own ``parse_job`` before it is sent, so a bad
 job raises ``JobError`` naming the field and nothing reaches ``job_goal``. Statuses are
 ``cnc_status/1`` documents (as dicts); ``wait`` and ``submit`` spin the node (or the
 executor given), everything else only reads what the node's callbacks have received.
 
-On a shop floor the planner runs on the machine's controller and the client on the cell
-controller, found through a discovery server (``ROS_DISCOVERY_SERVER``, docs/shop-floor.md).
-DDS tells the client when the planner is no longer heard (liveliness of its job_status, lease
-``qos.PLANNER_LEASE_S``) and when it is back; ``reachable`` and ``on_reachability`` say so.
-A job keeps running on a machine cut off from the cell (planner and bridge share its host),
-and its statuses, kept by the planner, arrive once the machine is reachable again::
-
-    client.on_reachability(lambda up: print("m1", "reachable" if up else "unreachable"))
-    client.follow("drill-001")  # a job sent by another controller (or before a restart)
+On a shop floor (docs/shop-floor.md, planner on the machine's controller, client on the
+cell controller) ``reachable`` and ``on_reachability`` say whether DDS still hears the
+planner (liveliness of job_status, lease ``qos.PLANNER_LEASE_S``). A job runs on while its
+machine is cut off, and its statuses, kept by the planner, arrive once it is reachable
+again; ``follow(job_id)`` follows a job another controller sent (or one sent before a restart).
 
 ``cnc-submit JOB`` wraps the client for the shell, against nodes already running (``ros2
 run`` from a colcon install, or the ``cnc-planner``/``cnc-bridge`` console scripts).
@@ -50,27 +42,27 @@ from pathlib import Path
 from typing import Any, Callable
 
 from . import topics
+from .bridge_lifecycle import BridgeLifecycle, CncClientError
 from .job import load_job
 from .status import FINAL_STATES, Status, encode_cancel
 
 CONNECT_TIMEOUT_S = 10.0  # how long submit waits for a planner to listen on job_goal
+RESEND_S = 2.0  # a goal no status has answered within this is sent again (see submit)
 MATCH_OTHERS_S = 1.0  # then, at most this long for the other listeners on job_goal to match
-
-
-class CncClientError(RuntimeError):
-    """The planner or bridge could not be reached, or the bridge refused a transition."""
 
 
 class CncClient:
     """Submit jobs to the planner under ``namespace`` and follow them over job_status.
 
     Args:
-        node: an rclpy Node you own; the client adds two publishers and a subscription.
+        node: an rclpy Node you own; the client adds two publishers, a subscription and
+            a timer (goal resends).
         namespace: the planner's namespace (topics ``<namespace>/job_goal`` etc.).
         executor: the executor ``node`` is spun by, if any; default rclpy's global one.
     """
 
     def __init__(self, node: Any, namespace: str = topics.NAMESPACE, executor: Any = None) -> None:
+        from rclpy.clock import Clock, ClockType
         from rclpy.event_handler import SubscriptionEventCallbacks
         from std_msgs.msg import String
 
@@ -90,12 +82,14 @@ class CncClient:
             event_callbacks=SubscriptionEventCallbacks(liveliness=self._on_liveliness))
         self._statuses: dict[str, dict] = {}  # latest status per job submitted here
         self._submitted: set[str] = set()
+        self._unanswered: dict[str, tuple[str, float]] = {}  # job_id -> (goal text, monotonic time sent)
+        node.create_timer(RESEND_S / 4, self._resend_unanswered, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self._others: dict[str, dict] = {}  # latest status of the other jobs heard (for follow)
         self._callbacks: list[Callable[[dict], None]] = []
         self._reachable: bool | None = None  # None until DDS has said anything
         self._alive = 0  # planners (job_status writers) DDS holds alive
         self._reachability_callbacks: list[Callable[[bool], None]] = []
-        self._bridge_services: dict[str, Any] = {}  # lifecycle service clients, made when first used
+        self._bridge = BridgeLifecycle(node, f"{self.namespace}/{topics.BRIDGE_NODE}", self._spin_once)
 
     # -- the task API -------------------------------------------------------------------
 
@@ -103,6 +97,9 @@ class CncClient:
         """Validate a job and send it on job_goal; returns its job_id.
 
         Waits (spinning the node) up to ``connect_timeout`` s for a planner to listen.
+        While no status for the job is heard, the goal is sent again every RESEND_S as the
+        node spins: a planner whose side of the DDS match came after the goal never saw it,
+        and one that did answers the copy with the job's latest status, never runs it twice.
 
         Raises:
             JobError: the job is invalid (nothing is sent); names the field.
@@ -113,7 +110,9 @@ class CncClient:
         self.wait_for_planner(connect_timeout)
         self._statuses.pop(job_id, None)
         self._submitted.add(job_id)
-        self._goal_pub.publish(self._string(data=json.dumps(doc)))
+        text = json.dumps(doc)
+        self._unanswered[job_id] = (text, time.monotonic())
+        self._goal_pub.publish(self._string(data=text))
         return job_id
 
     def wait(self, job_id: str, timeout: float | None = None) -> dict:
@@ -212,13 +211,7 @@ class CncClient:
             CncClientError: no bridge answered within ``timeout`` s, or it refused the
                 transition (not available from its state, or the transition failed).
         """
-        from lifecycle_msgs.srv import ChangeState
-
-        request = ChangeState.Request()
-        request.transition.label = transition
-        if not self._call_bridge(ChangeState, "change_state", request, timeout).success:
-            raise CncClientError(f"the bridge refused '{transition}' (it is {self.bridge_state(timeout)})")
-        return self.bridge_state(timeout)
+        return self._bridge.transition(transition, timeout)
 
     def bridge_state(self, timeout: float = CONNECT_TIMEOUT_S) -> str:
         """The bridge's lifecycle state: unconfigured, inactive, active or finalized.
@@ -226,28 +219,7 @@ class CncClient:
         Raises:
             CncClientError: no bridge answered within ``timeout`` s.
         """
-        from lifecycle_msgs.srv import GetState
-
-        return self._call_bridge(GetState, "get_state", GetState.Request(), timeout, resend=True).current_state.label
-
-    def _call_bridge(self, service_type: Any, service: str, request: Any, timeout: float, resend: bool = False) -> Any:
-        """``resend`` a question each second unanswered: Fast DDS drops a response to a reader not yet matched."""
-        name = f"{self.namespace}/{topics.BRIDGE_NODE}/{service}"
-        if (client := self._bridge_services.get(name)) is None:
-            client = self._bridge_services[name] = self.node.create_client(service_type, name)
-        deadline = time.monotonic() + timeout
-        while not client.service_is_ready():
-            if time.monotonic() > deadline:
-                raise CncClientError(f"no bridge answers on {name} (waited {timeout:g} s)")
-            self._spin_once(0.05)
-        future, sent = client.call_async(request), time.monotonic()
-        while not future.done():
-            if time.monotonic() > deadline:
-                raise CncClientError(f"no answer on {name} within {timeout:g} s")
-            if resend and time.monotonic() - sent > 1.0:
-                future, sent = client.call_async(request), time.monotonic()
-            self._spin_once(0.05)
-        return future.result()
+        return self._bridge.state(timeout)
 
     def _on_liveliness(self, info: Any) -> None:
         # Counted from the changes, not the status's alive_count: when the first "alive" came
@@ -282,11 +254,19 @@ class CncClient:
             if self._others.get(job_id, {}).get("state") not in FINAL_STATES:
                 self._others[job_id] = dict(doc)
             return
+        self._unanswered.pop(job_id, None)
         if self._final(job_id):
             return  # a job is final once; later copies (re-delivered latched ones) change nothing
         self._statuses[job_id] = dict(doc)
         for callback in self._callbacks:
             callback(dict(doc))
+
+    def _resend_unanswered(self) -> None:
+        now = time.monotonic()
+        for job_id, (text, sent) in list(self._unanswered.items()):
+            if now - sent >= RESEND_S:
+                self._unanswered[job_id] = (text, now)
+                self._goal_pub.publish(self._string(data=text))
 
     def _spin_once(self, timeout: float) -> None:
         if self.executor is not None:
@@ -295,6 +275,3 @@ class CncClient:
             import rclpy
 
             rclpy.spin_once(self.node, timeout_sec=timeout)
-
-
-# -- cnc-submit -----------------------------------------------------------------------

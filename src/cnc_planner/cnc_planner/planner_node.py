@@ -27,6 +27,7 @@ from cnc_msgs_py.status import Status, decode_cancel
 from cnc_msgs_py.units import NS
 
 from cnc_planner.executive import Executive, Output, Settings
+from cnc_planner.goal_ledger import GoalLedger
 
 
 PARAMETERS = {
@@ -95,7 +96,8 @@ class PlannerNode(Node):
         # Goals are validated and planned on a thread of their own, so that a running job's
         # stream never waits for the next job's planning; they are admitted in arrival order.
         self.intake = ThreadPoolExecutor(max_workers=1, thread_name_prefix="cnc_planner_intake")
-        self.preparing: deque[Future] = deque()
+        self.preparing: deque[tuple[bytes, Future]] = deque()  # (goal key, its preparation)
+        self.ledger = GoalLedger()  # a client's resent goal is answered, not run twice
         self.create_timer(value(self, "feedback_period"), self.poll, clock=self.wall)
         self.get_logger().info(f"planning for machine '{machine.name}' joints {self.joints}")
 
@@ -167,16 +169,28 @@ class PlannerNode(Node):
         status.stamp_ns = self.latest_feedback_ns
         if status.state in ("rejected", "aborted", "canceled"):
             self.get_logger().warning(f"job '{status.job_id}' {status.state}: {status.reason}")
+        elif status.state == "accepted":
+            self.get_logger().info(f"job '{status.job_id}' accepted ({status.duration_s:.2f} s planned)")
+        self.ledger.published(status)
         self.status_pub.publish(String(data=status.encode()))
 
     def on_goal(self, msg: String) -> None:
+        key = self.ledger.key(msg.data)
+        if self.ledger.is_repeat(key):  # sent again by a client that heard nothing yet
+            if (answer := self.ledger.answer(key)) is not None:
+                self.status_pub.publish(String(data=answer.encode()))
+            return
+        self.ledger.receive(key)
         # The running job's setpoints go further ahead before planning starts taking the GIL.
         self.advance(planning=True)
-        self.preparing.append(self.intake.submit(self.executive.prepare, msg.data))
+        self.preparing.append((key, self.intake.submit(self.executive.prepare, msg.data)))
 
     def admit_prepared(self) -> None:
-        while self.preparing and self.preparing[0].done():
-            self.publish_status(self.executive.admit(self.preparing.popleft().result()))
+        while self.preparing and self.preparing[0][1].done():
+            key, prepared = self.preparing.popleft()
+            status = self.executive.admit(prepared.result())
+            self.ledger.admitted(key, status)
+            self.publish_status(status)
 
     def on_cancel(self, msg: String) -> None:
         self.admit_prepared()

@@ -10,6 +10,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.clock import Clock, ClockType
+from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message
@@ -91,7 +92,9 @@ class PlannerNode(Node):
         self.latest_feedback_ns = 0
         self.wall = Clock(clock_type=ClockType.STEADY_TIME)
         self.last_feedback_wall = self.wall.now()
-        self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS)
+        # A heartbeat each second, and at once to each new listener (a recorder waits for it).
+        self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS,
+                                              event_callbacks=PublisherEventCallbacks(matched=self.on_listener))
         self.create_timer(1.0, self.heartbeat, clock=self.wall)
         # Goals are validated and planned on a thread of their own, so that a running job's
         # stream never waits for the next job's planning; they are admitted in arrival order.
@@ -230,6 +233,10 @@ class PlannerNode(Node):
                 if self.executive.active is None:
                     # The job it hit has ended (aborted): acknowledge, so the next one may run.
                     self.reset_pub.publish(String(data="cnc_planner"))
+
+    def on_listener(self, info) -> None:
+        if info.current_count_change > 0:
+            self.heartbeat()
 
     def heartbeat(self) -> None:
         """Tell the cell the planner is up, and what it is doing."""

@@ -7,6 +7,7 @@ gets the sections every job gets (cycle time, following error, air-cuts of vibra
 """
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable
 from dataclasses import dataclass
 from types import SimpleNamespace
@@ -70,12 +71,27 @@ class ReportSection:
 
 @dataclass(frozen=True)
 class Figures:
-    """The kind's PNG figures of a run, drawn when its report section is present:
-    ``draw`` returns (figure, file name) pairs."""
+    """The kind's PNG figures of a run, drawn when its report section is present, from its
+    figures ``module``, imported when first asked for: matplotlib stays out of the nodes
+    (it was a third of the planner's import time). The module's ``draw`` returns (figure,
+    file name) pairs, its ``CAPTIONS`` say what the report page writes under each figure
+    (file stem -> text), and its function ``aircut_summary``, if named, gives the air-cut
+    summary the aircut figures show."""
 
-    draw: Callable[[Run, Job, Machine, np.ndarray, dict], list[tuple[Any, str]]]
-    captions: dict[str, str]  # file stem -> what the report page says under the figure
-    aircut: Callable[[dict], dict | None] | None = None  # the air-cut summary the aircut figures show
+    module: str
+    aircut_summary: str | None = None
+
+    @property
+    def draw(self) -> Callable[[Run, Job, Machine, np.ndarray, dict], list[tuple[Any, str]]]:
+        return importlib.import_module(self.module).draw
+
+    @property
+    def captions(self) -> dict[str, str]:
+        return importlib.import_module(self.module).CAPTIONS
+
+    @property
+    def aircut(self) -> Callable[[dict], dict | None] | None:
+        return getattr(importlib.import_module(self.module), self.aircut_summary) if self.aircut_summary else None
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,6 @@ from cnc_msgs_py.machine import SPINDLE
 from . import page
 from .block import drill_cycle
 from .cycle import DrillCycle
-from .figures import CAPTIONS, draw, first_hole_aircut
 from .planning import plan_drill
 from .report import drill_section
 from cnc_planner.kinds.kind import Figures, JobKind, ProgressCount, ReportSection, Segmenting
@@ -65,6 +64,6 @@ KIND = JobKind(
                           check_whole=_check_whole, prepare=_prepare, settle=_hold_until_settled),
     report=ReportSection("drill", drill_section, judges_chips=True, times_cycle=True, cards=page.cards,
                          tables=page.tables),
-    figures=Figures(draw, CAPTIONS, aircut=first_hole_aircut),
+    figures=Figures(f"{__name__}.figures", aircut_summary="first_hole_aircut"),
     progress=ProgressCount("S1", "hole", total=lambda job: len(job.drill.holes)),
 )

@@ -4,7 +4,6 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 from . import page
-from .figures import CAPTIONS, draw
 from .planning import plan_thread_job
 from .report import thread_section
 from cnc_planner.kinds.kind import Figures, JobKind, ProgressCount, ReportSection
@@ -22,6 +21,6 @@ KIND = JobKind(
     plan=plan_thread_job,
     layouts=("lathe", "lathe_y"),
     report=ReportSection("thread", thread_section, judges_chips=True, cards=page.cards, tables=page.tables),
-    figures=Figures(draw, CAPTIONS),
+    figures=Figures(f"{__name__}.figures"),
     progress=ProgressCount("thread_pass", "thread pass", total=thread_passes),
 )

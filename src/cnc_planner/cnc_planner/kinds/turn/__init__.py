@@ -5,7 +5,6 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 from . import page
-from .figures import CAPTIONS, draw
 from .planning import plan_turn
 from .report import turn_section
 from .roughing import plan_roughing
@@ -26,6 +25,6 @@ KIND = JobKind(
     plan=plan_turn,
     layouts=("lathe", "lathe_y"),
     report=ReportSection("turn", turn_section, times_cycle=True, cards=page.cards),
-    figures=Figures(draw, CAPTIONS),
+    figures=Figures(f"{__name__}.figures"),
     progress=ProgressCount("pass", "pass", total=cutting_passes),
 )

@@ -57,7 +57,8 @@ def test_colcon_build_installs_both_executables(install):
 
 
 def test_sourced_install_imports_the_installed_packages(install):
-    probe = "import cnc_msgs_py, cnc_analysis, cnc_planner, cnc_servo_bridge as m; print(*(p.__file__ for p in (cnc_msgs_py, cnc_analysis, cnc_planner, m)))"
+    probe = ("import cnc_msgs_py, cnc_analysis, cnc_planner, cnc_servo_bridge as m; from cnc_msgs_py.discovery import LOCAL_PROFILE as x; "
+             "assert x.is_file(); print(*(p.__file__ for p in (cnc_msgs_py, cnc_analysis, cnc_planner, m)), x)")
     result = subprocess.run(sourced(install, f"{sys.executable} -c '{probe}'"), capture_output=True, text=True,
                             timeout=60, env=clean_env())
     assert result.returncode == 0, result.stderr

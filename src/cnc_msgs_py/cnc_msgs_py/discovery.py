@@ -32,6 +32,7 @@ TRANSPORTS = ("UDPv4", "UDPv6", "TCPv4", "TCPv6")
 # What says where a ROS process looks for its peers (kept when our tools start processes).
 DDS_VARIABLES = ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_STATIC_PEERS", "ROS_DISCOVERY_SERVER",
                  "ROS_SUPER_CLIENT", "FASTRTPS_DEFAULT_PROFILES_FILE")
+LOCAL_PROFILE = Path(__file__).with_name("fastdds_local.xml")  # for simple discovery (see dds_environment)
 SERVER_WHEEL = "ros-fastrtps"  # the PyPI wheel of Fast DDS that carries fast-discovery-server
 SERVER_PROGRAM = "fast-discovery-server"
 
@@ -132,10 +133,12 @@ def server_guid_prefix(server_id: int) -> str:
 def dds_environment(environ: Mapping[str, str], domain_id: int | None = None) -> dict[str, str]:
     """The DDS variables for a ROS process our tools start, given the caller's environment.
 
-    What the user set is kept: ``ROS_DOMAIN_ID``, ``ROS_AUTOMATIC_DISCOVERY_RANGE``, and a
+    What the user set is kept: ``ROS_DOMAIN_ID``, ``ROS_AUTOMATIC_DISCOVERY_RANGE``, a
     ``ROS_DISCOVERY_SERVER`` (with which the range is left to DDS: the servers are where to
-    look). Only what is unset is chosen: the range is ``LOCALHOST``, so tests and demos stay
-    on this host, and the domain is ``domain_id`` (if given).
+    look) and ``FASTRTPS_DEFAULT_PROFILES_FILE``. Only what is unset is chosen: the range is
+    ``LOCALHOST``, so tests and demos stay on this host, the domain is ``domain_id`` (if
+    given), and with simple discovery the profile is LOCAL_PROFILE (more announcements as
+    a participant starts: see the file).
 
     Returns the full environment (a copy of ``environ`` with those set).
     """
@@ -144,6 +147,8 @@ def dds_environment(environ: Mapping[str, str], domain_id: int | None = None) ->
         env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     if not env.get("ROS_DOMAIN_ID") and domain_id is not None:
         env["ROS_DOMAIN_ID"] = str(domain_id)
+    if not env.get("ROS_DISCOVERY_SERVER", "").strip() and not env.get("FASTRTPS_DEFAULT_PROFILES_FILE"):
+        env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(LOCAL_PROFILE)
     return env
 
 

@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import os
 import subprocess
+import sys
+from xml.etree import ElementTree
 
 import pytest
+from support import domain_range
 
-from cnc_msgs_py.discovery import (DEFAULT_PORT, DEFAULT_TCP_PORT, DiscoveryServer, dds_environment,
+from cnc_msgs_py.discovery import (DEFAULT_PORT, DEFAULT_TCP_PORT, LOCAL_PROFILE, DiscoveryServer, dds_environment,
                                    describe_discovery, discovery_server_variable, find_server_program,
                                    parse_discovery_servers, server_command, server_environment,
                                    server_guid_prefix)
@@ -56,7 +59,25 @@ def test_server_guid_prefix_spells_ds_id_eprosima():
 def test_without_a_choice_processes_stay_on_this_host_in_the_given_domain():
     env = dds_environment({"PATH": "/bin"}, 17)
     assert env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST" and env["ROS_DOMAIN_ID"] == "17"
-    assert env["PATH"] == "/bin"
+    assert env["PATH"] == "/bin" and env["FASTRTPS_DEFAULT_PROFILES_FILE"] == str(LOCAL_PROFILE)
+
+
+def test_the_local_profile_announces_a_starting_participant_for_two_seconds():
+    """Read as Fast DDS reads it: its default profile, ten announcements 200 ms apart."""
+    ns = {"f": "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"}
+    participant = ElementTree.parse(LOCAL_PROFILE).getroot().find("f:participant", ns)
+    assert participant.get("is_default_profile") == "true"
+    announcements = participant.find("f:rtps/f:builtin/f:discovery_config/f:initialAnnouncements", ns)
+    assert int(announcements.find("f:count", ns).text) == 10
+    assert int(announcements.find("f:period/f:nanosec", ns).text) == 200_000_000
+
+
+def test_a_ros_process_reads_the_local_profile_without_complaint():
+    probe = "import rclpy; rclpy.init(); rclpy.create_node('probe').destroy_node(); rclpy.shutdown()"
+    environ = {k: v for k, v in os.environ.items() if k not in ("FASTRTPS_DEFAULT_PROFILES_FILE", "ROS_DOMAIN_ID")}
+    env = dds_environment(environ, domain_range()[0])
+    result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, env=env, timeout=60)
+    assert result.returncode == 0 and "rror" not in result.stderr, result.stderr
 
 
 @pytest.mark.parametrize("user, kept", [

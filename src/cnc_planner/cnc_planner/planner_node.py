@@ -13,7 +13,6 @@ from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.serialization import deserialize_message
 from rclpy.time import Time as RosTime
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
@@ -52,6 +51,10 @@ PARAMETERS = {
 }
 
 
+def ignore(_msg: object) -> None:
+    """The callback of a subscription read with take_latest (never called: not spun)."""
+
+
 def take_latest(subscription):
     """The newest message waiting in a subscription (None if none)."""
     latest = None
@@ -82,12 +85,21 @@ class PlannerNode(Node):
         self.reset_pub = self.create_publisher(String, topics.ALARM_RESET, qos.ALARM_RESET)
         self.create_subscription(String, topics.JOB_GOAL, self.on_goal, qos.JOB_GOAL)
         self.create_subscription(String, topics.JOB_CANCEL, self.on_cancel, qos.JOB_CANCEL)
-        # joint_states come at 1 kHz (many times that in simulation): each is only kept, as
-        # bytes, and the latest is read every feedback_period of wall time, which is all
-        # progress, the stream's lookahead and the watchdog need. The job's end is exact
+        # joint_states come at 1 kHz (many times that in simulation), and /clock with them;
+        # the latest of each is read every feedback_period of wall time and at each bridge
+        # report (poll), which is all progress, the stream's lookahead and the watchdog need.
+        # They are read from a hidden node that no executor spins: DDS keeps the newest
+        # message (depth 1) and no message costs a Python callback. The job's end is exact
         # regardless: its status carries the stream's own end time, not the feedback's.
-        self.feedback_bytes: bytes | None = None
-        self.create_subscription(JointState, topics.JOINT_STATES, self.keep_feedback, qos.LATEST, raw=True)
+        self.readers = Node("_cnc_planner_readers", context=self.context, start_parameter_services=False,
+                            enable_rosout=False,  # the same remappings; no time source of its own
+                            parameter_overrides=[Parameter("use_sim_time", Parameter.Type.BOOL, False)])
+        self.feedback_sub = self.readers.create_subscription(JointState, topics.JOINT_STATES, ignore, qos.LATEST)
+        self.clock_sub = None
+        if self.get_parameter("use_sim_time").value:
+            self.clock_sub = self.readers.create_subscription(ClockMsg, topics.CLOCK, ignore, qos.LATEST)
+            for sub in [s for s in self.subscriptions if s.msg_type is ClockMsg]:
+                self.destroy_subscription(sub)  # rclpy's time source's: a callback per /clock message
         self.create_subscription(DiagnosticArray, topics.DIAGNOSTICS, self.on_diagnostics, qos.DIAGNOSTICS)
         self.latest_feedback_ns = 0
         self.wall = Clock(clock_type=ClockType.STEADY_TIME)
@@ -134,9 +146,8 @@ class PlannerNode(Node):
         job's setpoints ahead of the bridge's clock (also while feedback is slow to arrive:
         real time under CPU load). ``bridge_ns``: see advance."""
         self.take_clock()
-        if self.feedback_bytes is not None:
-            self.on_feedback(deserialize_message(self.feedback_bytes, JointState))
-            self.feedback_bytes = None
+        if (feedback := take_latest(self.feedback_sub)) is not None:
+            self.on_feedback(feedback)
         else:
             self.admit_prepared()
         if self.latest_feedback_ns and self.trajectory_pub.get_subscription_count():
@@ -144,14 +155,10 @@ class PlannerNode(Node):
         self.watch_feedback()
 
     def take_clock(self) -> None:
-        """In simulation, the latest /clock now: rclpy's time source (use_sim_time) sets it
-        from a callback per message, which waits behind this one (and behind planning)."""
-        for sub in self.subscriptions:
-            if sub.msg_type is ClockMsg and (msg := take_latest(sub)) is not None:
-                self.get_clock().set_ros_time_override(RosTime.from_msg(msg.clock))
-
-    def keep_feedback(self, data: bytes) -> None:
-        self.feedback_bytes = data
+        """In simulation, the latest /clock now (rclpy's time source would set it from a
+        callback per message, which waits behind this one and behind planning)."""
+        if self.clock_sub is not None and (msg := take_latest(self.clock_sub)) is not None:
+            self.get_clock().set_ros_time_override(RosTime.from_msg(msg.clock))
 
     def publish(self, out: Output) -> None:
         # The bridge's clock now, not at the feedback this output was made for (real time:
@@ -253,6 +260,7 @@ class PlannerNode(Node):
 
     def destroy_node(self) -> None:
         self.intake.shutdown(wait=False, cancel_futures=True)
+        self.readers.destroy_node()
         super().destroy_node()
 
     def watch_feedback(self) -> None:

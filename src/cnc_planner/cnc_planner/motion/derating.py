@@ -23,6 +23,7 @@ from typing import Callable
 from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_msgs_py.schema import JobError
 
+from cnc_planner.motion import collector
 from cnc_planner.motion.plan_check import check_plan
 from cnc_planner.motion.timeline import Plan
 
@@ -81,12 +82,13 @@ def plan_within_limits(plan: Callable[[Machine], Plan], machine: Machine, period
             violation, which names the limit).
     """
     violation: JobError | None = None
-    for step in STEPS:
-        candidate = plan(derated(machine, step))
-        try:
-            check_plan(candidate, machine, period, field)
-            return candidate
-        except JobError as err:
-            violation = err
+    with collector.paused():
+        for step in STEPS:
+            candidate = plan(derated(machine, step))
+            try:
+                check_plan(candidate, machine, period, field)
+                return candidate
+            except JobError as err:
+                violation = err
     assert violation is not None
     raise violation

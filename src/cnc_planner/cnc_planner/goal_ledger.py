@@ -15,6 +15,9 @@ import hashlib
 
 from cnc_msgs_py.status import Status
 
+KEPT = 10_000  # goals and jobs remembered (the newest): a client resends for seconds only, and
+# a repeat of a goal forgotten since is rejected by the executive (its job_id was used), not run
+
 
 class GoalLedger:
     """Goals by digest, what each came to, and each job's latest status."""
@@ -34,16 +37,16 @@ class GoalLedger:
 
     def receive(self, key: bytes) -> None:
         """A new goal, to be prepared."""
-        self._goals[key] = None
+        _remember(self._goals, key, None)
 
     def admitted(self, key: bytes, status: Status) -> None:
         """The goal's status on admission: a rejection answers its repeats as it stands
         (another goal may hold the job_id it named); otherwise they get the job's latest."""
-        self._goals[key] = status if status.state == "rejected" else status.job_id
+        _remember(self._goals, key, status if status.state == "rejected" else status.job_id)
 
     def published(self, status: Status) -> None:
         if status.state != "rejected":  # a rejection is its goal's, not the job_id holder's
-            self._latest[status.job_id] = status
+            _remember(self._latest, status.job_id, status)
 
     def answer(self, key: bytes) -> Status | None:
         """What to say to a repeat of the goal ``key``: its rejection or its job's latest
@@ -52,3 +55,11 @@ class GoalLedger:
         if goal is None or isinstance(goal, Status):
             return goal
         return self._latest.get(goal)
+
+
+def _remember(kept: dict, key: object, value: object) -> None:
+    """Set ``key`` as the newest entry of ``kept``, which holds at most KEPT."""
+    kept.pop(key, None)
+    kept[key] = value
+    if len(kept) > KEPT:
+        del kept[next(iter(kept))]

@@ -10,7 +10,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.clock import Clock, ClockType
-from rclpy.event_handler import PublisherEventCallbacks
+from rclpy.event_handler import PublisherEventCallbacks, QoSPublisherMatchedInfo
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.time import Time as RosTime
@@ -241,7 +241,8 @@ class PlannerNode(Node):
                     # The job it hit has ended (aborted): acknowledge, so the next one may run.
                     self.reset_pub.publish(String(data="cnc_planner"))
 
-    def on_listener(self, info) -> None:
+    def on_listener(self, info: QoSPublisherMatchedInfo) -> None:
+        """A new diagnostics listener (a recorder waiting for the planner) hears it at once."""
         if info.current_count_change > 0:
             self.heartbeat()
 

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from cnc_msgs_py.status import Status
 
+from cnc_planner import goal_ledger
 from cnc_planner.goal_ledger import GoalLedger
 
 
@@ -47,3 +48,18 @@ def test_goals_that_are_not_json_are_keyed_by_their_text():
         ledger.receive(key)
         ledger.admitted(key, rejected := Status("", "rejected", reason="not JSON"))
         assert ledger.answer(ledger.key(text)) is rejected
+
+
+def test_only_the_newest_goals_and_jobs_are_kept(monkeypatch):
+    monkeypatch.setattr(goal_ledger, "KEPT", 3)
+    ledger = GoalLedger()
+    keys = [ledger.key(f'{{"job_id": "j{i}"}}') for i in range(5)]
+    for i, key in enumerate(keys):
+        ledger.receive(key)
+        ledger.admitted(key, accepted := Status(f"j{i}", "accepted"))
+        ledger.published(accepted)
+    assert [ledger.is_repeat(k) for k in keys] == [False, False, True, True, True]
+    assert ledger.answer(keys[4]).job_id == "j4"
+    ledger.published(Status("j2", "running"))  # a job heard of again is the newest once more
+    ledger.published(Status("j5", "accepted"))
+    assert ledger.answer(keys[2]).state == "running" and ledger.answer(keys[3]) is None

@@ -8,7 +8,6 @@ import time
 
 import pytest
 import rclpy
-from builtin_interfaces.msg import Time
 from rclpy.executors import SingleThreadedExecutor
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -16,10 +15,7 @@ from sensor_msgs.msg import JointState
 from cnc_msgs_py import qos, topics
 from cnc_msgs_py.units import NS
 from cnc_planner.planner_node import PlannerNode
-
-
-def stamp(ns: int) -> Time:
-    return Time(sec=ns // NS, nanosec=ns % NS)
+from cnc_servo_bridge.bridge_node import stamp
 
 
 @pytest.mark.parametrize("clock_topic", ["/clock", "/cell/m1/clock"])

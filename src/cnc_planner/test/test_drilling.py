@@ -265,3 +265,27 @@ def test_s1_tolerance_crossings_equal_a_scan_of_the_whole_move(hole) -> None:
     away = np.nonzero(np.linalg.norm(p - np.take(hole, axis), axis=1) > tol)[0]
     assert xy.leave == (max(ts[left[0]] - CROSSING_STEP, 0.0) if len(left) else np.inf)
     assert xy.arrive == (ts[away[-1]] + CROSSING_STEP if len(away) else 0.0)
+
+
+
+@pytest.mark.parametrize("compensate_xy", [True, False])
+def test_s1_crossings_shared_by_a_displacement_equal_each_moves_own_scan(compensate_xy) -> None:
+    """s1_moves scans the tolerance crossings once per displacement: over a grid across
+    the travel (far from the origin too, where positions round differently) every hole's
+    crossings are what a scan of its own whole move says."""
+    from cnc_planner.kinds.drill.xy_moves import CROSSING_STEP, s1_moves
+
+    holes = [(-0.45 + 0.005 * (i % 6) + 0.3 * (i // 12), -0.25 + 0.004 * (i // 6)) for i in range(36)]
+    cycle = DrillCycle(holes=holes, surface_z=0.0, bottom_z=-0.002, r_z=0.002, feed=0.02, compensate_xy=compensate_xy)
+    position = (0.0, 0.0)
+    moves = s1_moves(MACHINE, cycle, {"x": position[0], "y": position[1], "z": 0.01})
+    assert len({(round(b[0] - a[0], 9), round(b[1] - a[1], 9)) for a, b in zip(holes, holes[1:])}) < 8
+    for hole, xy in zip(holes, moves):
+        ts = np.arange(0.0, xy.move.duration + CROSSING_STEP, CROSSING_STEP)
+        p = xy.move.sample_all(np.minimum(ts, xy.move.duration))[0]
+        axis = [("x", "y").index(j) for j in xy.joints]
+        left = np.nonzero(np.linalg.norm(p - np.take(position, axis), axis=1) > cycle.xy_tolerance)[0]
+        away = np.nonzero(np.linalg.norm(p - np.take(hole, axis), axis=1) > cycle.xy_tolerance)[0]
+        assert xy.leave == max(ts[left[0]] - CROSSING_STEP, 0.0)
+        assert xy.arrive == ts[away[-1]] + CROSSING_STEP
+        position = hole

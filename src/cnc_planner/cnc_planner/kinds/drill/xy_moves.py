@@ -74,34 +74,42 @@ def s1_moves(machine: Machine, cycle: DrillCycle, start: dict[str, float]) -> li
     position = (start["x"], start["y"])
     moves: list[XYMove] = []
     corrections: dict[tuple, tuple] = {}
+    crossings: dict[tuple, tuple[float, float]] = {}
     for i, hole in enumerate(cycle.holes):
         for axis, value in zip(XY, hole):
             if not machine.axes[axis].within_travel(value):
                 raise DrillError(f"drill.holes[{i}]", f"{axis} = {value} m is outside the travel")
         moved = _moved_axes(position, hole)
+        # The drive is linear up to its encoder counts, and a move's shape depends on its
+        # displacement only: one correction, and one pair of tolerance crossings, per
+        # displacement (a plate of one pitch computes each once, not at every hole).
+        key = tuple(round((dict(zip(XY, hole))[j] - dict(zip(XY, position))[j]) * 1e9) for j in moved)
+        shares, correction = (1.0, 1.0, 1.0), None
         if moved and cycle.overlap and cycle.compensate_xy:
-            # The drive is linear up to its encoder counts: one correction per displacement.
-            key = tuple(round((dict(zip(XY, hole))[j] - dict(zip(XY, position))[j]) * 1e9) for j in moved)
             if key not in corrections:
                 corrections[key] = _headroom(machine, cycle.servo_period, position, hole, cycle.xy_tolerance)
             shares, correction = corrections[key]
-            xy = replace(_xy_move(machine, position, hole, cycle.xy_tolerance, shares), correction=correction)
-        else:
-            xy = _xy_move(machine, position, hole, cycle.xy_tolerance)
-        moves.append(xy)
+        xy = _xy_move(machine, position, hole, cycle.xy_tolerance, shares, crossings.get((key, shares)))
+        if xy.move is not None:
+            crossings[key, shares] = (xy.leave, xy.arrive)
+        moves.append(replace(xy, correction=correction) if correction is not None else xy)
         position = hole
     return moves
 
 
 def _xy_move(machine: Machine, p0: tuple[float, float], p1: tuple[float, float], tol: float,
-            shares: tuple[float, float, float] = (1.0, 1.0, 1.0)) -> XYMove:
-    """S1 as the builder's rapid will plan it, with its command's tolerance crossings;
+            shares: tuple[float, float, float] = (1.0, 1.0, 1.0),
+            crossings: tuple[float, float] | None = None) -> XYMove:
+    """S1 as the builder's rapid will plan it, with its command's tolerance crossings
+    (``crossings``, leave and arrive, if known from a move of the same displacement);
     ``shares`` of the velocity, acceleration and jerk limits leave headroom for the drive
     compensation (_headroom)."""
     target = dict(zip(XY, p1))
     move, joints = _limited(machine, p0, p1, shares)
     if move is None:
         return XYMove(target, None, math.inf, 0.0)
+    if crossings is not None:
+        return XYMove(target, move, *crossings, tuple(joints))
     ts = np.arange(0.0, move.duration + CROSSING_STEP, CROSSING_STEP)
     start = np.array([dict(zip(XY, p0))[j] for j in joints])
     end = np.array([target[j] for j in joints])

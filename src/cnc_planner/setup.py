@@ -3,7 +3,7 @@ import os
 from glob import glob
 from pathlib import Path
 
-from setuptools import find_packages, setup
+from setuptools import Extension, find_packages, setup
 
 PACKAGE = "cnc_planner"
 HERE = Path(__file__).resolve().parent
@@ -13,10 +13,17 @@ def config(pattern: str) -> list[str]:
     """Files of the workspace's config/ (shared by the packages), relative to this package."""
     return sorted(os.path.relpath(f, HERE) for f in glob(str(HERE.parents[1] / "config" / pattern)))
 
+# Bulk sampling of ruckig pieces (motion/_sample_kernel.c), compiled here (pip or colcon);
+# -ffp-contract=off keeps every multiply and add separately rounded, as numpy's are, so it
+# equals the numpy evaluation (a fused multiply-add would differ in the last bit).
+SAMPLE_KERNEL = Extension(f"{PACKAGE}.motion._sample_kernel", sources=[f"{PACKAGE}/motion/_sample_kernel.c"],
+                          extra_compile_args=["-O2", "-ffp-contract=off"])
+
 setup(
     name=PACKAGE,
     version="0.1.0",
     packages=find_packages(exclude=["test"]),
+    ext_modules=[SAMPLE_KERNEL],
     package_data={PACKAGE: ["templates/*.j2"]},  # report.html's template, read by jinja2 from the package
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
@@ -25,7 +32,7 @@ setup(
         (f"share/{PACKAGE}/config/jobs", config("jobs/*.yaml")),
     ],
     install_requires=["setuptools", "Jinja2>=3.1"],
-    zip_safe=True,
+    zip_safe=False,
     maintainer="CNC control team",
     maintainer_email="dev@cnc.local",
     description="Plans CNC jobs (drilling, turning, vibration, threads) into jerk-limited joint setpoints streamed as trajectory_msgs/JointTrajectory; run, plan and analyse CLIs.",

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from ruckig import ControlInterface, InputParameter, Result, Ruckig, Synchronization, Trajectory
 
-from cnc_planner.motion.jerk_profile import TrajectorySampler, sample_pieces
+from cnc_planner.motion.jerk_profile import TrajectorySampler, sample_spans
 
 
 def random_trajectories(count: int, seed: int):
@@ -41,19 +41,38 @@ def test_bulk_sampling_equals_at_time_with_and_without_brakes():
     assert braked > 100  # the brake pre-trajectory was exercised
 
 
-
-def test_one_pass_over_many_pieces_equals_each_sampler_bit_for_bit():
-    """sample_pieces (a timeline's runs of ruckig pieces) gives exactly the values of each
-    dof's own sampler: plans hashed before and after must not differ by one ulp."""
-    pieces, expected, lo = [], [], 0
-    for trajectory in random_trajectories(300, seed=11):
+def test_one_call_over_many_pieces_equals_each_sampler_bit_for_bit():
+    """sample_spans (the compiled kernel a timeline samples its ruckig pieces with) gives
+    exactly the values of each dof's own numpy sampler at its local instants (plan time
+    minus the piece's start), with and without brakes, into strided outputs as a plan's
+    columns are: plans hashed before and after must not differ by one ulp."""
+    rows, starts, lo, hi, expected, ts = [], [], [], [], [], []
+    n = 0
+    for k, trajectory in enumerate(random_trajectories(300, seed=11)):
         sampler = TrajectorySampler(trajectory)
-        t = np.linspace(0.0, 1.1 * trajectory.duration, 40)
-        values = sampler.sample(t)
+        start = 0.37 * k + 1e-3 / 3  # plan times that do not round trip through the subtraction
+        t = start + np.linspace(-0.01, 1.1 * trajectory.duration, 40)
+        values = sampler.sample(t - start)
         for dof, row in enumerate(sampler.rows):
-            pieces.append((lo, lo + len(t), t, row))
+            ts.append(t)
+            rows.append(row)
+            starts.append(start)
+            lo.append(n)
+            hi.append(n + len(t))
             expected.append(values[:, :, dof])
-            lo += len(t)
-    out = [np.zeros(lo) for _ in range(3)]
-    sample_pieces(pieces, out)
-    assert np.array_equal(np.array(out), np.concatenate(expected, axis=1))
+            n += len(t)
+    plan = np.zeros((3, n, 2))  # the second column stays untouched
+    sample_spans(np.array(rows), np.array(starts), np.array(lo), np.array(hi), np.concatenate(ts),
+                 (plan[0, :, 0], plan[1, :, 0], plan[2, :, 0]))
+    assert np.array_equal(plan[:, :, 0], np.concatenate(expected, axis=1))
+    assert not plan[:, :, 1].any()
+
+
+def test_bad_spans_are_refused_naming_the_array():
+    sampler = TrajectorySampler(next(random_trajectories(1, seed=3)))
+    out = [np.zeros(4) for _ in range(3)]
+    with pytest.raises(ValueError, match="piece 0"):
+        sample_spans(np.array(sampler.rows[:1]), np.zeros(1), np.array([2]), np.array([5]), np.zeros(4), out)
+    with pytest.raises(TypeError, match="p: expected an array of format 'd'"):
+        sample_spans(np.array(sampler.rows[:1]), np.zeros(1), np.array([0]), np.array([4]), np.zeros(4),
+                     [np.zeros(4, np.float32)] + out[1:])

@@ -433,25 +433,30 @@ def test_velocity_change_stops_from_motion():
 
 
 def test_a_plan_sample_evaluates_each_move_once_and_keeps_no_samples(monkeypatch):
-    """Every joint of a three-axis rapid asks its one ruckig move for the same instants:
-    it is evaluated once per plan sample, and nothing sampled stays with the plan."""
+    """Every joint of a three-axis rapid samples its own dof of the one ruckig move (one
+    sample_spans call each, no instant twice, no joint evaluating all three dofs), and
+    nothing sampled stays with the plan."""
     from cnc_planner.motion import moves as motion
+    from cnc_planner.motion import timeline
     from cnc_planner.motion.jerk_profile import TrajectorySampler
 
-    calls = []
-    evaluate = TrajectorySampler.sample
-    monkeypatch.setattr(TrajectorySampler, "sample", lambda self, t: calls.append(len(t)) or evaluate(self, t))
+    whole, spans = [], []
+    evaluate, sample_spans = TrajectorySampler.sample, timeline.sample_spans
+    monkeypatch.setattr(TrajectorySampler, "sample", lambda self, t: whole.append(len(t)) or evaluate(self, t))
+    monkeypatch.setattr(timeline, "sample_spans",
+                        lambda rows, starts, lo, hi, *rest: spans.append(int(np.sum(hi - lo))) or
+                        sample_spans(rows, starts, lo, hi, *rest))
     builder = PlanBuilder(MILL, {"x": -0.2, "y": 0.1, "z": 0.05})
     builder.rapid({"x": 0.3, "y": -0.25, "z": -0.2})
     plan = builder.build()
     ts = grid(plan.duration)
     p, _, _ = plan.sample(ts)
     inside = int(np.sum(ts < plan.duration))
-    assert calls == [inside]  # one evaluation serves x, y and z
+    assert whole == [] and spans == [inside, inside, inside]  # x, y and z their own dof
     assert p[-1, :3].tolist() == [0.3, -0.25, -0.2]
     assert motion._scope.depth == 0 and motion._scope.samples == {}
     plan.sample(ts)
-    assert calls == [inside, inside]  # a second plan sample evaluates again: nothing was kept
+    assert spans == [inside] * 6  # a second plan sample evaluates again: nothing was kept
 
 
 def test_a_carried_correction_rides_on_later_pieces_and_holds_the_joint_where_none_is():
@@ -477,3 +482,31 @@ def test_a_carried_correction_rides_on_later_pieces_and_holds_the_joint_where_no
     assert p == pytest.approx(0.001 + 1e-3 * np.maximum(0.3 - t, 0.0) * (t < 0.3))
     assert v[:3] == pytest.approx([-1e-3] * 3) and v[3] == 0.0
     assert line.end_time == pytest.approx(0.3)
+
+
+def test_a_plans_samples_are_each_pieces_own_values_at_its_own_instants():
+    """Plan.sample equals every piece sampled on its own at its local instants (plan time
+    minus its start), bit for bit. A perforated plate reuses its retract and air moves at
+    every hole: a sample shared by two pieces of one move whose local instants agree at
+    their ends but not in between once put one hole's values at another's (up to 4e-14 m/s^2)."""
+    from pathlib import Path
+
+    from cnc_msgs_py.job import load_job_file
+
+    doc = load_job_file(Path(__file__).parents[3] / "config" / "jobs" / "drill_row.yaml")
+    doc["drill"].update(holes=[[-250 + 5 * (i % 3), -250 + 5 * (i // 3)] for i in range(9)], depth=1.5, r_gap=1.0,
+                        feed=1500)
+    plan = plan_job(parse_job(doc), load_machine(doc["machine"]))
+    ts = np.arange(int(np.ceil(plan.duration / 1e-3)) + 1) * 1e-3
+    sampled = plan.sample(ts)
+    shared = 0
+    for i, joint in enumerate(plan.joints):
+        moves = [piece.sample.move for piece in plan.timelines[joint].pieces if hasattr(piece.sample, "move")]
+        shared += len(moves) - len(set(map(id, moves)))
+        for piece in plan.timelines[joint].pieces:
+            inside = (ts >= piece.start) & (ts < piece.end)
+            if inside.any():
+                own = piece.sample(ts[inside] - piece.start)
+                for q in range(3):
+                    assert np.array_equal(sampled[q][inside, i], own[q]), (joint, piece.start, "pva"[q])
+    assert shared > 10  # moves used by more than one piece: the case the test is about

@@ -6,6 +6,9 @@ degree of freedom, an optional two-phase brake pre-trajectory followed by seven 
 constant jerk, then constant acceleration past its end. This module reads those phases once
 (`Trajectory.profiles`) and evaluates any number of instants with the same formula and the
 same case split as ruckig's `at_time`, so the results equal it up to float rounding.
+A timeline's many pieces are sampled in one call of a compiled kernel (sample_spans,
+_sample_kernel.c) that evaluates the same operations, so it equals this module's numpy
+evaluation bit for bit.
 """
 from __future__ import annotations
 
@@ -14,6 +17,13 @@ from dataclasses import dataclass
 
 import numpy as np
 from ruckig import Trajectory
+
+from cnc_planner.motion._sample_kernel import spans as _spans
+
+# A row of TrajectorySampler.rows, as _sample_kernel.c reads it: t_sum (7), start (8), then
+# p, v, a, j (8 each), the duration, the brake's duration and second phase's start, its
+# p, v, a, j (2 each).
+ROW_LENGTH = 58
 
 
 @dataclass(frozen=True)
@@ -65,7 +75,7 @@ class TrajectorySampler:
         if len(sections) != 1:  # waypoints need ruckig's cloud solver, which we never use
             raise ValueError("only trajectories without intermediate waypoints can be bulk-sampled")
         self._phases = [_phases(p) for p in sections[0]]
-        # Per dof, its phases as one flat row of sample_rows' table.
+        # Per dof, its phases as one flat row (ROW_LENGTH) for sample_spans.
         self.rows = [np.concatenate((ph.t_sum, ph.start, ph.pvaj.ravel(), [self.duration, ph.brake_duration,
                                      ph.brake_t0], ph.brake_pvaj.ravel())) for ph in self._phases]
 
@@ -102,53 +112,12 @@ class TrajectorySampler:
         return np.array(_integrate(dt, p0, v0, a0, j))
 
 
-BATCH_SAMPLES = 1 << 16  # instants sampled in one numpy pass over many pieces: bounds its temporaries
-# A row of sample_rows' table: t_sum (7), start (8), then p, v, a, j (8 each), the
-# duration, the brake's duration and second phase's start, its p, v, a, j (2 each).
-_START, _PVAJ, _DURATION, _BRAKE, _BRAKE_T0, _BRAKE_PVAJ = 7, 15, 47, 48, 49, 50
-
-
-def sample_rows(table: np.ndarray, which: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Array (3, len(t)): instant t[k] of the dof whose row is table[which[k]]
-    (TrajectorySampler.rows), by _sample_dof's formula and case split (the same values),
-    so that many short pieces of a timeline cost one numpy pass instead of one call each."""
-    brake = table[which, _BRAKE]
-    braked = brake > 0
-    local = t.copy()
-    local[braked] = t[braked] - brake[braked]  # after a brake the phases run from its end
-    index = np.zeros(len(t), dtype=np.intp)
-    for k in range(_START):  # searchsorted(t_sum, local, side="right"): how many ends are <= it
-        index += local >= table[which, k]
-    after = t >= table[which, _DURATION]
-    index[after] = 7
-    dt = local - table[which, _START + index]
-    p0, v0, a0, j = (table[which, _PVAJ + 8 * q + index] for q in range(4))
-    if braked.any():
-        end = braked & after  # from the final state
-        dt[end] = t[end] - (brake[end] + table[which[end], _START - 1])
-        inside = np.nonzero(braked & ~after & (t < brake))[0]
-        second = (t[inside] >= table[which[inside], _BRAKE_T0]).astype(np.intp)
-        dt[inside] = t[inside] - np.where(second > 0, table[which[inside], _BRAKE_T0], 0.0)
-        for q, x in enumerate((p0, v0, a0, j)):
-            x[inside] = table[which[inside], _BRAKE_PVAJ + 2 * q + second]
-    return _integrate_into(dt, p0, v0, a0, j)
-
-
-def sample_pieces(batch: list[tuple[int, int, np.ndarray, np.ndarray]],
-                  out: tuple[np.ndarray, np.ndarray, np.ndarray] | list[np.ndarray]) -> None:
-    """Pieces (lo, hi, local instants, row) of ruckig dofs written to out[q][lo:hi] as
-    their samplers would, BATCH_SAMPLES instants per numpy pass (sample_rows)."""
-    first = 0
-    while first < len(batch):
-        last, total = first, 0
-        while last < len(batch) and (total == 0 or total + batch[last][1] - batch[last][0] <= BATCH_SAMPLES):
-            total += batch[last][1] - batch[last][0]
-            last += 1
-        lo, hi, local, rows = zip(*batch[first:last])
-        counts = np.subtract(hi, lo)
-        which = np.repeat(np.arange(len(counts)), counts)
-        index = np.arange(total) + np.repeat(np.asarray(lo) - (np.cumsum(counts) - counts), counts)
-        values = sample_rows(np.array(rows), which, np.concatenate(local))
-        for q in range(3):
-            out[q][index] = values[q]
-        first = last
+def sample_spans(rows: np.ndarray, starts: np.ndarray, lo: np.ndarray, hi: np.ndarray, ts: np.ndarray,
+                 out: tuple[np.ndarray, np.ndarray, np.ndarray] | list[np.ndarray]) -> None:
+    """Many pieces of ruckig dofs at once: piece k (its phases rows[k], a row of
+    TrajectorySampler.rows) starting at plan time starts[k], at the instants
+    ts[lo[k]:hi[k]], written to out[q][lo[k]:hi[k]]; the values its TrajectorySampler
+    gives, computed where they are written (compiled: _sample_kernel.c), so that a
+    timeline of tens of thousands of short pieces costs no temporaries per instant."""
+    _spans(np.ascontiguousarray(rows, dtype=float).reshape(-1, ROW_LENGTH), np.asarray(starts, dtype=float),
+           np.asarray(lo, dtype=np.intp), np.asarray(hi, dtype=np.intp), np.asarray(ts, dtype=float), *out)

@@ -43,7 +43,7 @@ class _SampleScope(threading.local):
 
     def __init__(self) -> None:
         self.depth = 0
-        self.samples: dict[tuple, np.ndarray] = {}
+        self.samples: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}  # key -> (instants, samples)
 
 
 _scope = _SampleScope()
@@ -64,16 +64,6 @@ def shared_samples() -> Iterator[None]:
             _scope.samples.clear()
 
 
-class _Claimed:
-    """Instants a timeline sampled itself under a sample_all key (RuckigMove.claim): a
-    later ask with that key is answered with these instants' samples, as if cached."""
-
-    __slots__ = ("t",)
-
-    def __init__(self, t: np.ndarray) -> None:
-        self.t = t
-
-
 class RuckigMove:
     """A ruckig trajectory over several degrees of freedom, sampled on demand."""
 
@@ -89,27 +79,14 @@ class RuckigMove:
         """Array (3, len(t), dofs): position, velocity, acceleration."""
         if _scope.depth == 0:
             return self._sample(t)
-        key = self._key(t)
-        out = _scope.samples.get(key)
-        if out is None or type(out) is _Claimed:
-            out = _scope.samples[key] = self._sample(t if out is None else out.t)
-        return out
-
-    def _key(self, t: np.ndarray) -> tuple:
-        # The key holds the move itself (compared by identity), so it cannot outlive it.
-        return (self, len(t), float(t[0]), float(t[-1])) if len(t) else (self, 0, 0.0, 0.0)
-
-    def claim(self, t: np.ndarray) -> bool:
-        """Whether a caller may sample the instants t itself (jerk_profile.sample_rows):
-        not where this scope already holds samples under their key, which sample_all
-        would return instead. A claim is kept as the key's samples for later asks."""
-        if _scope.depth == 0:
-            return True
-        key = self._key(t)
-        if key in _scope.samples:
-            return False
-        _scope.samples[key] = _Claimed(t)
-        return True
+        # The key holds the move itself (compared by identity), so it cannot outlive it; a
+        # hit is used only for the very same instants (pieces of one move at other times
+        # share the key's ends but not always every instant between them).
+        key = (self, len(t), float(t[0]), float(t[-1])) if len(t) else (self, 0, 0.0, 0.0)
+        held = _scope.samples.get(key)
+        if held is None or not np.array_equal(held[0], t):
+            held = _scope.samples[key] = (t, self._sample(t))
+        return held[1]
 
     def _sample(self, t: np.ndarray) -> np.ndarray:
         if self._sampler is None:
@@ -121,7 +98,7 @@ class RuckigMove:
         return DofSampler(self, dof)
 
     def row(self, dof: int) -> np.ndarray:
-        """The dof's phases as a row of jerk_profile.sample_rows' table."""
+        """The dof's phases as a row of jerk_profile.sample_spans' table."""
         if self._sampler is None:
             self._sampler = TrajectorySampler(self.trajectory)
         return self._sampler.rows[dof]
@@ -129,7 +106,7 @@ class RuckigMove:
 
 class DofSampler:
     """One degree of freedom of a RuckigMove as a timeline piece's sampler: an object, not
-    a closure, so that a timeline can sample a run of such pieces in one numpy pass."""
+    a closure, so that a timeline can sample a run of such pieces in one call (sample_spans)."""
 
     __slots__ = ("move", "dof")
 

@@ -14,7 +14,7 @@ from typing import Callable
 
 import numpy as np
 
-from cnc_planner.motion.jerk_profile import sample_pieces
+from cnc_planner.motion.jerk_profile import ROW_LENGTH, sample_spans
 from cnc_planner.motion.moves import DofSampler, shared_samples
 
 # Local time (s, from the piece's start) -> position, velocity, acceleration arrays.
@@ -51,6 +51,10 @@ class JointTimeline:
         self._starts: list[float] = []
         self._coast: list[tuple[float, float, float]] = [(0.0, position, velocity)]  # (t, p, v)
         self._coast_array: np.ndarray | None = None
+        self._spans = np.zeros((0, 2))  # (start, end) per piece, as an array
+        self._ruckig = np.zeros(0, bool)  # per piece: one dof of a ruckig move (DofSampler)
+        self._rows = np.zeros((0, ROW_LENGTH))  # their sample_spans rows, read when first sampled
+        self._row_known = np.zeros(0, bool)
         self._carried: list[tuple[float, float, Correction]] = []  # (from, until, plan time -> p, v, a)
 
     @property
@@ -153,39 +157,58 @@ class JointTimeline:
         p, v, a = out if out is not None else (np.empty_like(ts), np.empty_like(ts), np.empty_like(ts))
         first = max(bisect.bisect_right(self._starts, ts[0]) - 1, 0) if len(ts) else 0
         last = bisect.bisect_right(self._starts, ts[-1]) if len(ts) else 0
-        pieces = self.pieces[first:last]
+        self._index_pieces()
+        spans = self._spans[first:last]
         # Every piece's index range in one call; only pieces that hold instants are sampled.
-        bounds = np.searchsorted(ts, [(piece.start, piece.end) for piece in pieces], side="left")
-        bounds = bounds.reshape(len(pieces), 2)
+        lo, hi = np.searchsorted(ts, spans, side="left").T
         # Coasting only where no piece is (the pieces overwrite the rest): piece i's coast
         # state applies after piece i-1 ends.
-        gap_lo, gap_hi = self._gaps(bounds, len(ts))
+        gap_lo, gap_hi = self._gaps(lo, hi, len(ts))
         if len(gap_lo):
             if self._coast_array is None or len(self._coast_array) != len(self._coast):
                 self._coast_array = np.asarray(self._coast)  # (t, p, v) rows, built once per change
             coast_t = self._coast_array[:, 0]
             first_state = np.searchsorted(coast_t, ts[gap_lo], side="right") - 1
             last_state = np.searchsorted(coast_t, ts[gap_hi - 1], side="right") - 1
-            for lo, hi, i, i_last in zip(*(x.tolist() for x in (gap_lo, gap_hi, first_state, last_state))):
+            for g_lo, g_hi, i, i_last in zip(*(x.tolist() for x in (gap_lo, gap_hi, first_state, last_state))):
                 # one coast state over the whole gap, or (a piece shorter than the gap between
                 # two instants ended inside it) one per instant
-                t0, p0, v0 = self._coast_array[max(i, 0)] if i == i_last else self._coast_at(ts[lo:hi]).T
-                v[lo:hi] = v0
-                p[lo:hi] = p0 + v0 * (ts[lo:hi] - t0)
-                a[lo:hi] = 0.0
-        held = [(piece, lo, hi) for piece, (lo, hi) in zip(pieces, bounds.tolist()) if hi > lo]
+                t0, p0, v0 = self._coast_array[max(i, 0)] if i == i_last else self._coast_at(ts[g_lo:g_hi]).T
+                v[g_lo:g_hi] = v0
+                p[g_lo:g_hi] = p0 + v0 * (ts[g_lo:g_hi] - t0)
+                a[g_lo:g_hi] = 0.0
+        held = np.nonzero(hi > lo)[0]
         # A later piece overwrites an earlier one where they share instants: in one pass
-        # only where none do.
-        disjoint = all(a[2] <= b[1] for a, b in zip(held, held[1:]))
-        batch = []
-        for piece, lo, hi in held:
-            sampler, local = piece.sample, ts[lo:hi] - piece.start
-            if disjoint and type(sampler) is DofSampler and sampler.move.claim(local):
-                batch.append((lo, hi, local, sampler.move.row(sampler.dof)))
-            else:
-                p[lo:hi], v[lo:hi], a[lo:hi] = sampler(local)
-        sample_pieces(batch, (p, v, a))
+        # only where none do, the ruckig pieces all in one call, the others one by one.
+        others = held
+        if np.all(hi[held[:-1]] <= lo[held[1:]]):
+            ruckig = held[self._ruckig[first + held]]
+            if len(ruckig):
+                sample_spans(self._rows_of(first + ruckig), spans[ruckig, 0], lo[ruckig], hi[ruckig], ts, (p, v, a))
+            others = held[~self._ruckig[first + held]]
+        for k in others.tolist():
+            piece, k_lo, k_hi = self.pieces[first + k], int(lo[k]), int(hi[k])
+            p[k_lo:k_hi], v[k_lo:k_hi], a[k_lo:k_hi] = piece.sample(ts[k_lo:k_hi] - piece.start)
         return p, v, a
+
+    def _index_pieces(self) -> None:
+        """The pieces' spans and kinds as arrays, extended to pieces added since."""
+        known, n = len(self._spans), len(self.pieces)
+        if known == n:
+            return
+        added = self.pieces[known:]
+        self._spans = np.concatenate((self._spans, np.array([(q.start, q.end) for q in added]).reshape(-1, 2)))
+        self._ruckig = np.concatenate((self._ruckig, [type(q.sample) is DofSampler for q in added]))
+        self._row_known = np.concatenate((self._row_known, np.zeros(n - known, bool)))
+        self._rows = np.resize(self._rows, (n, ROW_LENGTH))
+
+    def _rows_of(self, which: np.ndarray) -> np.ndarray:
+        """The sample_spans rows of the ruckig pieces ``which``, each read from its move once."""
+        for k in which[~self._row_known[which]].tolist():
+            sampler = self.pieces[k].sample
+            self._rows[k] = sampler.move.row(sampler.dof)
+            self._row_known[k] = True
+        return self._rows[which]
 
     def _coast_at(self, ts: np.ndarray) -> np.ndarray:
         """The (t, p, v) coast state in force at each of the instants ts."""
@@ -193,12 +216,12 @@ class JointTimeline:
         return self._coast_array[np.maximum(index, 0)]
 
     @staticmethod
-    def _gaps(bounds: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-        """The index ranges [lo, hi) in [0, n) outside every [lo, hi) of bounds (rows sorted
-        by lo), as two arrays."""
+    def _gaps(lo: np.ndarray, hi: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """The index ranges [gap_lo, gap_hi) in [0, n) outside every [lo, hi) (sorted by lo),
+        as two arrays."""
         # Gap i runs from the furthest end of the pieces before piece i to its start.
-        gap_lo = np.concatenate(([0], np.maximum.accumulate(bounds[:, 1]))).astype(np.intp)
-        gap_hi = np.concatenate((bounds[:, 0], [n])).astype(np.intp)
+        gap_lo = np.concatenate(([0], np.maximum.accumulate(hi))).astype(np.intp)
+        gap_hi = np.concatenate((lo, [n])).astype(np.intp)
         keep = gap_hi > gap_lo
         return gap_lo[keep], gap_hi[keep]
 

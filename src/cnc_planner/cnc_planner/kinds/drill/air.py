@@ -8,7 +8,7 @@ import numpy as np
 from cnc_planner.kinds.drill.cycle import DrillCycle
 from cnc_planner.kinds.drill.servo_lag import Emit, ServoLag
 from cnc_planner.kinds.drill.z_axis import ZAxis
-from cnc_planner.motion.jerk_profile import sample_pieces
+from cnc_planner.motion.jerk_profile import sample_spans
 from cnc_planner.motion.moves import RuckigMove
 
 GENTLE_ROUNDS = 6  # bisection rounds for the gentle air acceleration
@@ -24,15 +24,17 @@ def air_energy(move: RuckigMove) -> float:
 
 def air_energies(moves: list[RuckigMove]) -> list[float]:
     """air_energy of each move, the accelerations of ENERGY_MOVES at a time sampled in one
-    numpy pass (sample_pieces: the same values) and summed per move as air_energy sums them."""
+    call (sample_spans: the same values) and summed per move as air_energy sums them."""
     energies = []
     for first in range(0, len(moves), ENERGY_MOVES):
         group = moves[first:first + ENERGY_MOVES]
         instants = [np.arange(0.0, move.duration, ENERGY_STEP) for move in group]
-        ends = np.cumsum([len(t) for t in instants]).tolist()
+        ends = np.cumsum([len(t) for t in instants])
         out = [np.empty(ends[-1]) for _ in range(3)]
-        sample_pieces([(end - len(t), end, t, move.row(0)) for end, t, move in zip(ends, instants, group)], out)
-        energies += [float(np.sum(a * a) * ENERGY_STEP) for a in np.split(out[2], ends[:-1])]
+        # each move's own instants, from its own start (0 s)
+        sample_spans(np.array([move.row(0) for move in group]), np.zeros(len(group)), ends - [len(t) for t in instants],
+                     ends, np.concatenate(instants), out)
+        energies += [float(np.sum(a * a) * ENERGY_STEP) for a in np.split(out[2], ends[:-1].tolist())]
     return energies
 
 

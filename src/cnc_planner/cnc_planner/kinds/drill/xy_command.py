@@ -6,7 +6,7 @@ import numpy as np
 
 from cnc_planner.kinds.drill.xy_moves import XY, XY_COMMAND_LEAD, XYMove
 from cnc_planner.motion.builder import PlanBuilder
-from cnc_planner.motion.jerk_profile import sample_pieces
+from cnc_planner.motion.jerk_profile import sample_spans
 from cnc_planner.motion.timeline import Piece
 
 
@@ -57,7 +57,7 @@ class XYCommand:
 
     def _write(self, ts: np.ndarray, first: int, out: dict[str, list[np.ndarray]]) -> None:
         """The entries from ``first`` that reach into ts written into ``out``: the moves'
-        samples in one pass per axis (sample_pieces), each correction's interpolation in
+        samples in one call per axis (sample_spans), each correction's interpolation in
         one call for all entries that share it (np.interp, elementwise the same values)."""
         t_s1, ends, c0s, c_ends = self._times()
         last = first + int(np.argmax(np.append(np.minimum(t_s1[first:], c0s[first:]) > ts[-1], True)))
@@ -71,21 +71,16 @@ class XYCommand:
             until.append({j: overridden[j] for j in xy.joints})
             overridden.update({j: lo for j in xy.joints})
         until.reverse()
-        batch: dict[str, list] = {j: [] for j in XY}
+        batch: dict[str, list] = {j: [] for j in XY}  # (row, start, lo, end) of each move's part
         for (t_s1_i, xy, _, lo, hi), stop in zip(window, until):
-            local = ts[lo:hi] - t_s1_i if hi > lo else None
-            batched = local is not None and xy.move.claim(local)
-            pva = xy.move.sample_all(local) if local is not None and not batched else None
             for dof, j in enumerate(xy.joints):
                 out[j][0][hi:stop[j]] = xy.target[j]
                 end = min(hi, stop[j])
-                if batched and end > lo:
-                    batch[j].append((lo, end, local[: end - lo], xy.move.row(dof)))
-                elif pva is not None and end > lo:
-                    for q in range(3):
-                        out[j][q][lo:end] = pva[q][: end - lo, dof]
+                if end > lo:
+                    batch[j].append((xy.move.row(dof), t_s1_i, lo, end))
         for j in XY:
-            sample_pieces(batch[j], out[j])
+            if batch[j]:
+                sample_spans(*(np.array(x) for x in zip(*batch[j])), ts, out[j])
         # Corrections: one np.interp per shared correction, dof and q for all its entries,
         # added in entry order (np.add.at): a correction's lead overlaps the tail before it.
         groups: dict[tuple[int, int], list] = {}  # (correction, dof) -> [correction, dof, instants, count]

@@ -1,0 +1,144 @@
+/* Sampling many pieces of ruckig trajectories at once: jerk_profile.sample_spans.
+ *
+ * A timeline of a long job holds tens of thousands of short ruckig pieces, and a plan is
+ * sampled at every servo period several times while it is made (the timing search, the
+ * bridge-contract check, the stream). In numpy each pass over them builds a dozen
+ * temporaries per instant; here each instant is evaluated where it is written.
+ *
+ * Each piece is one degree of freedom of a ruckig trajectory, given as a row of
+ * TrajectorySampler.rows (layout in jerk_profile.py). The evaluation is
+ * TrajectorySampler._sample_dof's (ruckig's at_time: brake phases, seven phases of
+ * constant jerk, constant acceleration past the end) with the same floating-point
+ * operations in the same order, no fused multiply-add (setup.py: -ffp-contract=off), so
+ * the values equal numpy's; test_jerk_profile.py checks that.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <string.h>
+
+/* The row layout (jerk_profile.py): t_sum (7), start (8), p, v, a, j (8 each), the
+ * duration, the brake's duration and second phase's start, its p, v, a, j (2 each). */
+enum { START = 7, PVAJ = 15, DURATION = 47, BRAKE = 48, BRAKE_T0 = 49, BRAKE_PVAJ = 50, ROW = 58 };
+
+/* One instant at local time t (s from the piece's start) of the dof whose row is r. */
+static void evaluate(const double *r, double t, double *p, double *v, double *a)
+{
+    const double brake = r[BRAKE];
+    const int braked = brake > 0;
+    const double local = braked ? t - brake : t;
+    int index = 0;
+    for (int k = 0; k < START; k++)
+        index += local >= r[k];
+    const int after = t >= r[DURATION];
+    if (after)
+        index = 7;
+    double dt = local - r[START + index];
+    double p0 = r[PVAJ + index], v0 = r[PVAJ + 8 + index], a0 = r[PVAJ + 16 + index], j = r[PVAJ + 24 + index];
+    if (braked) {
+        if (after) {  /* from the final state */
+            dt = t - (brake + r[START - 1]);
+        } else if (t < brake) {
+            const int second = t >= r[BRAKE_T0];
+            dt = t - (second ? r[BRAKE_T0] : 0.0);
+            p0 = r[BRAKE_PVAJ + second];
+            v0 = r[BRAKE_PVAJ + 2 + second];
+            a0 = r[BRAKE_PVAJ + 4 + second];
+            j = r[BRAKE_PVAJ + 6 + second];
+        }
+    }
+    const double tj = dt * j;
+    *a = a0 + tj;
+    *v = v0 + dt * (a0 + tj / 2);
+    *p = p0 + dt * (v0 + dt * (a0 / 2 + tj / 6));
+}
+
+/* One array argument: float64 (or intp for lo/hi), one dimension, any stride. */
+static int take(PyObject *obj, Py_buffer *view, int writable, const char *format, const char *name)
+{
+    int flags = PyBUF_STRIDES | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
+    if (PyObject_GetBuffer(obj, view, flags) < 0)
+        return -1;
+    if (view->ndim > 2 || view->format == NULL || strcmp(view->format, format) != 0) {
+        PyErr_Format(PyExc_TypeError, "%s: expected an array of format '%s'", name, format);
+        PyBuffer_Release(view);
+        return -1;
+    }
+    return 0;
+}
+
+#define AT(view, type, i) (*(type *)((char *)(view).buf + (i) * (view).strides[0]))
+
+enum { TABLE, STARTS, LO, HI, TS, P, V, A, ARRAYS };
+static const char *const NAMES[ARRAYS] = {"rows", "starts", "lo", "hi", "ts", "p", "v", "a"};
+
+static PyObject *spans_py(PyObject *self, PyObject *args)
+{
+    PyObject *obj[ARRAYS];
+    Py_buffer view[ARRAYS];
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OOOOOOOO:spans", &obj[TABLE], &obj[STARTS], &obj[LO], &obj[HI], &obj[TS],
+                          &obj[P], &obj[V], &obj[A]))
+        return NULL;
+    int taken = 0;
+    while (taken < ARRAYS) {
+        const char *format = taken == LO || taken == HI ? "l" : "d";
+        if (take(obj[taken], &view[taken], taken >= P, format, NAMES[taken]) < 0)
+            break;
+        taken++;
+    }
+    int ok = taken == ARRAYS;
+    Py_ssize_t pieces = 0, n = 0;
+    if (ok) {
+        pieces = view[STARTS].shape[0];
+        n = view[TS].shape[0];
+        if (view[TABLE].ndim != 2 || view[TABLE].shape[0] != pieces || view[TABLE].shape[1] != ROW
+            || view[TABLE].strides[1] != sizeof(double)) {
+            PyErr_Format(PyExc_ValueError, "rows: expected (%zd, %d) float64 rows", pieces, ROW);
+            ok = 0;
+        }
+        for (int k = LO; ok && k < ARRAYS; k++) {
+            Py_ssize_t expected = k == LO || k == HI ? pieces : n;
+            if (view[k].ndim != 1 || view[k].shape[0] != expected) {
+                PyErr_Format(PyExc_ValueError, "%s: expected %zd values", NAMES[k], expected);
+                ok = 0;
+            }
+        }
+        for (Py_ssize_t k = 0; ok && k < pieces; k++) {
+            Py_ssize_t lo = AT(view[LO], long, k), hi = AT(view[HI], long, k);
+            if (lo < 0 || hi > n || lo > hi) {
+                PyErr_Format(PyExc_ValueError, "piece %zd: instants [%zd, %zd) outside [0, %zd)", k, lo, hi, n);
+                ok = 0;
+            }
+        }
+    }
+    if (ok) {
+        Py_BEGIN_ALLOW_THREADS
+        for (Py_ssize_t k = 0; k < pieces; k++) {
+            const double *row = (const double *)((char *)view[TABLE].buf + k * view[TABLE].strides[0]);
+            const double start = AT(view[STARTS], double, k);
+            for (Py_ssize_t i = AT(view[LO], long, k); i < AT(view[HI], long, k); i++)
+                evaluate(row, AT(view[TS], double, i) - start, &AT(view[P], double, i), &AT(view[V], double, i),
+                         &AT(view[A], double, i));
+        }
+        Py_END_ALLOW_THREADS
+    }
+    for (int k = 0; k < taken; k++)
+        PyBuffer_Release(&view[k]);
+    if (!ok)
+        return NULL;
+    Py_RETURN_NONE;
+}
+
+static PyMethodDef METHODS[] = {
+    {"spans", spans_py, METH_VARARGS,
+     "spans(rows, starts, lo, hi, ts, p, v, a): piece k (rows[k], from plan time starts[k]) at the\n"
+     "instants ts[lo[k]:hi[k]], written to p, v and a at the same indices."},
+    {NULL, NULL, 0, NULL}};
+
+static struct PyModuleDef MODULE = {PyModuleDef_HEAD_INIT, "_sample_kernel",
+                                    "Sampling ruckig pieces in bulk (jerk_profile.sample_spans).", -1, METHODS};
+
+PyMODINIT_FUNC PyInit__sample_kernel(void)
+{
+    return PyModule_Create(&MODULE);
+}

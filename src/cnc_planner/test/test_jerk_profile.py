@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from ruckig import ControlInterface, InputParameter, Result, Ruckig, Synchronization, Trajectory
 
-from cnc_planner.motion.jerk_profile import TrajectorySampler, sample_spans
+from cnc_planner.motion.jerk_profile import TrajectorySampler, add_corrections, sample_spans
 
 
 def random_trajectories(count: int, seed: int):
@@ -76,3 +76,30 @@ def test_bad_spans_are_refused_naming_the_array():
     with pytest.raises(TypeError, match="p: expected an array of format 'd'"):
         sample_spans(np.array(sampler.rows[:1]), np.zeros(1), np.array([0]), np.array([4]), np.zeros(4),
                      [np.zeros(4, np.float32)] + out[1:])
+
+
+def test_corrections_equal_np_interp_added_in_order_bit_for_bit():
+    """add_corrections (the compiled X/Y correction pass) equals np.interp on the servo
+    grid added with np.add.at in part order: before, on and between grid points, past the
+    end, overlapping parts, and a one-sample correction."""
+    rng = np.random.default_rng(5)
+    period = 1e-3
+    corrections = [rng.normal(size=(3, k)) for k in (1, 2, 57, 300)]
+    table = np.concatenate([c.ravel() for c in corrections])
+    bases = np.cumsum([0] + [c.size for c in corrections])[:-1]
+    ts = np.sort(np.concatenate([np.arange(600) * period, rng.uniform(-0.01, 0.4, 400)]))
+    parts = [(int(rng.integers(4)), float(rng.uniform(-0.05, 0.3)), *sorted(rng.integers(0, len(ts), 2))) for _ in range(60)]
+    parts += [(3, 0.0, 0, len(ts)), (2, 0.1, 10, 10)]  # the grid itself; an empty part
+    base = [rng.normal(size=len(ts)) for _ in range(3)]
+    expected = [b.copy() for b in base]
+    for c, start, lo, hi in parts:
+        grid = np.arange(corrections[c].shape[1]) * period
+        for q in range(3):
+            np.add.at(expected[q], np.arange(lo, hi), np.interp(ts[lo:hi] - start, grid, corrections[c][q]))
+    out = [b.copy() for b in base]
+    add_corrections(table, [bases[c] for c, *_ in parts], [corrections[c].shape[1] for c, *_ in parts],
+                    [start for _, start, _, _ in parts], [lo for *_, lo, _ in parts], [hi for *_, hi in parts],
+                    period, ts, out)
+    assert all(np.array_equal(o, e) for o, e in zip(out, expected))
+    with pytest.raises(ValueError, match="part 0"):
+        add_corrections(table, [table.size], [2], [0.0], [0], [1], period, ts, out)

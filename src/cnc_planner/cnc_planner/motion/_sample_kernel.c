@@ -129,10 +129,117 @@ static PyObject *spans_py(PyObject *self, PyObject *args)
     Py_RETURN_NONE;
 }
 
+/* np.interp(x, j * period for j < k, fp) at one x, as numpy computes it (its left and right
+ * values are fp's ends; the interval found by index instead of numpy's binary search is
+ * the same one, the grid being strictly increasing). */
+static double interp(double x, Py_ssize_t k, double period, const double *fp)
+{
+    if (k == 1 || x < 0.0)
+        return fp[0];
+    const double last = (double)(k - 1) * period;
+    if (x > last)
+        return fp[k - 1];
+    Py_ssize_t j = (Py_ssize_t)(x / period);
+    j = j > k - 1 ? k - 1 : j;
+    while (j > 0 && (double)j * period > x)
+        j--;
+    while (j < k - 1 && (double)(j + 1) * period <= x)
+        j++;
+    const double xj = (double)j * period;
+    if (j == k - 1 || xj == x)
+        return fp[j];
+    const double xk = (double)(j + 1) * period;
+    const double slope = (fp[j + 1] - fp[j]) / (xk - xj);
+    double value = slope * (x - xj) + fp[j];
+    if (value != value) {  /* numpy's fallback for a non-finite slope */
+        value = slope * (x - xk) + fp[j + 1];
+        if (value != value && fp[j] == fp[j + 1])
+            value = fp[j];
+    }
+    return value;
+}
+
+enum { C_TABLE, C_OFFSET, C_LENGTH, C_START, C_LO, C_HI, C_TS, C_P, C_V, C_A, C_ARRAYS };
+static const char *const C_NAMES[C_ARRAYS] = {"table", "offset", "length", "starts", "lo", "hi", "ts", "p", "v", "a"};
+
+static PyObject *corrections_py(PyObject *self, PyObject *args)
+{
+    PyObject *obj[C_ARRAYS];
+    Py_buffer view[C_ARRAYS];
+    double period;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OOOOOOdOOOO:corrections", &obj[C_TABLE], &obj[C_OFFSET], &obj[C_LENGTH],
+                          &obj[C_START], &obj[C_LO], &obj[C_HI], &period, &obj[C_TS], &obj[C_P], &obj[C_V],
+                          &obj[C_A]))
+        return NULL;
+    int taken = 0;
+    while (taken < C_ARRAYS) {
+        const char *format = taken == C_OFFSET || taken == C_LENGTH || taken == C_LO || taken == C_HI ? "l" : "d";
+        if (take(obj[taken], &view[taken], taken >= C_P, format, C_NAMES[taken]) < 0)
+            break;
+        taken++;
+    }
+    int ok = taken == C_ARRAYS;
+    Py_ssize_t parts = 0, n = 0, size = 0;
+    if (ok) {
+        parts = view[C_START].shape[0];
+        n = view[C_TS].shape[0];
+        size = view[C_TABLE].shape[0];
+        for (int k = 0; ok && k < C_ARRAYS; k++) {
+            Py_ssize_t expected = k == C_TABLE ? size : k < C_TS ? parts : n;
+            if (view[k].ndim != 1 || view[k].shape[0] != expected) {
+                PyErr_Format(PyExc_ValueError, "%s: expected %zd values", C_NAMES[k], expected);
+                ok = 0;
+            }
+        }
+        if (ok && view[C_TABLE].strides[0] != sizeof(double)) {
+            PyErr_SetString(PyExc_ValueError, "table: expected a contiguous array");
+            ok = 0;
+        }
+        if (ok && !(period > 0.0)) {
+            PyErr_SetString(PyExc_ValueError, "period: must be positive");
+            ok = 0;
+        }
+        for (Py_ssize_t k = 0; ok && k < parts; k++) {
+            Py_ssize_t lo = AT(view[C_LO], long, k), hi = AT(view[C_HI], long, k);
+            Py_ssize_t offset = AT(view[C_OFFSET], long, k), length = AT(view[C_LENGTH], long, k);
+            if (lo < 0 || hi > n || lo > hi || length < 1 || offset < 0 || offset + 3 * length > size) {
+                PyErr_Format(PyExc_ValueError, "part %zd: instants [%zd, %zd) of %zd, or its %zd samples at %zd "
+                             "outside the table of %zd", k, lo, hi, n, length, offset, size);
+                ok = 0;
+            }
+        }
+    }
+    if (ok) {
+        Py_BEGIN_ALLOW_THREADS
+        for (Py_ssize_t k = 0; k < parts; k++) {
+            const Py_ssize_t length = AT(view[C_LENGTH], long, k);
+            const double *fp = &AT(view[C_TABLE], double, AT(view[C_OFFSET], long, k));
+            const double start = AT(view[C_START], double, k);
+            for (Py_ssize_t i = AT(view[C_LO], long, k); i < AT(view[C_HI], long, k); i++) {
+                const double x = AT(view[C_TS], double, i) - start;
+                AT(view[C_P], double, i) += interp(x, length, period, fp);
+                AT(view[C_V], double, i) += interp(x, length, period, fp + length);
+                AT(view[C_A], double, i) += interp(x, length, period, fp + 2 * length);
+            }
+        }
+        Py_END_ALLOW_THREADS
+    }
+    for (int k = 0; k < taken; k++)
+        PyBuffer_Release(&view[k]);
+    if (!ok)
+        return NULL;
+    Py_RETURN_NONE;
+}
+
 static PyMethodDef METHODS[] = {
     {"spans", spans_py, METH_VARARGS,
      "spans(rows, starts, lo, hi, ts, p, v, a): piece k (rows[k], from plan time starts[k]) at the\n"
      "instants ts[lo[k]:hi[k]], written to p, v and a at the same indices."},
+    {"corrections", corrections_py, METH_VARARGS,
+     "corrections(table, offset, length, starts, lo, hi, period, ts, p, v, a): part k, in order, adds\n"
+     "np.interp(ts[i] - starts[k], servo grid of length[k] samples, its p, v or a samples, which lie\n"
+     "one after the other from table[offset[k]]) to p, v and a at each i in [lo[k], hi[k])."},
     {NULL, NULL, 0, NULL}};
 
 static struct PyModuleDef MODULE = {PyModuleDef_HEAD_INIT, "_sample_kernel",

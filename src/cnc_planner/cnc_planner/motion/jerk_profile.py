@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from ruckig import Trajectory
 
+from cnc_planner.motion._sample_kernel import corrections as _corrections
 from cnc_planner.motion._sample_kernel import spans as _spans
 
 # A row of TrajectorySampler.rows, as _sample_kernel.c reads it: t_sum (7), start (8), then
@@ -121,3 +122,17 @@ def sample_spans(rows: np.ndarray, starts: np.ndarray, lo: np.ndarray, hi: np.nd
     timeline of tens of thousands of short pieces costs no temporaries per instant."""
     _spans(np.ascontiguousarray(rows, dtype=float).reshape(-1, ROW_LENGTH), np.asarray(starts, dtype=float),
            np.asarray(lo, dtype=np.intp), np.asarray(hi, dtype=np.intp), np.asarray(ts, dtype=float), *out)
+
+
+def add_corrections(table: np.ndarray, offset: np.ndarray, length: np.ndarray, starts: np.ndarray, lo: np.ndarray,
+                    hi: np.ndarray, period: float, ts: np.ndarray,
+                    out: tuple[np.ndarray, np.ndarray, np.ndarray] | list[np.ndarray]) -> None:
+    """Drive-model corrections learned on the servo grid, added to commands: part k, in
+    order, adds its correction (length[k] samples of p, then of v, then of a, one after
+    the other in ``table`` from offset[k], sample i at i * period from starts[k]) linearly
+    interpolated at the instants ts[lo[k]:hi[k]] to out[q][lo[k]:hi[k]]. The values
+    np.interp gives, added in part order as np.add.at adds them (compiled:
+    _sample_kernel.c)."""
+    _corrections(np.ascontiguousarray(table, dtype=float), np.asarray(offset, dtype=np.intp),
+                 np.asarray(length, dtype=np.intp), np.asarray(starts, dtype=float), np.asarray(lo, dtype=np.intp),
+                 np.asarray(hi, dtype=np.intp), float(period), np.asarray(ts, dtype=float), *out)

@@ -6,7 +6,7 @@ import numpy as np
 
 from cnc_planner.kinds.drill.xy_moves import XY, XY_COMMAND_LEAD, XYMove
 from cnc_planner.motion.builder import PlanBuilder
-from cnc_planner.motion.jerk_profile import sample_spans
+from cnc_planner.motion.jerk_profile import add_corrections, sample_spans
 from cnc_planner.motion.timeline import Piece
 
 
@@ -22,6 +22,7 @@ class XYCommand:
         self._cache: tuple[tuple, dict] | None = None
         self._reach: np.ndarray | None = None
         self._times_cache: tuple[np.ndarray, ...] | None = None
+        self._table: tuple[np.ndarray, dict[int, int], int] | None = None  # _corrections', for so many entries
         self._held_after: list[dict[str, float]] = [dict(self.start)]  # _held's, per entry
 
     def add(self, t_s1: float, xy: XYMove) -> None:
@@ -57,8 +58,8 @@ class XYCommand:
 
     def _write(self, ts: np.ndarray, first: int, out: dict[str, list[np.ndarray]]) -> None:
         """The entries from ``first`` that reach into ts written into ``out``: the moves'
-        samples in one call per axis (sample_spans), each correction's interpolation in
-        one call for all entries that share it (np.interp, elementwise the same values)."""
+        samples and then their corrections, each in one call per axis (sample_spans,
+        add_corrections)."""
         t_s1, ends, c0s, c_ends = self._times()
         last = first + int(np.argmax(np.append(np.minimum(t_s1[first:], c0s[first:]) > ts[-1], True)))
         bounds = np.searchsorted(ts, np.stack((t_s1[first:last], ends[first:last]), axis=1), side="left")
@@ -81,29 +82,36 @@ class XYCommand:
         for j in XY:
             if batch[j]:
                 sample_spans(*(np.array(x) for x in zip(*batch[j])), ts, out[j])
-        # Corrections: one np.interp per shared correction, dof and q for all its entries,
-        # added in entry order (np.add.at): a correction's lead overlaps the tail before it.
-        groups: dict[tuple[int, int], list] = {}  # (correction, dof) -> [correction, dof, instants, count]
-        parts: dict[str, list[tuple[tuple[int, int], int, int, int]]] = {j: [] for j in XY}
+        # Corrections, added in entry order: a correction's lead overlaps the tail before it.
+        table, bases = self._corrections()
+        parts: dict[str, list[tuple[int, int, float, int, int]]] = {j: [] for j in XY}  # (offset, length, c0, lo, end)
         for (_, xy, c0, _, _), stop, lo, hi in zip(window, until, c_lo, c_hi):
             if xy.correction is None:  # a move planned without one (no headroom for it)
                 continue
+            length = xy.correction.shape[1]
             for dof, j in enumerate(xy.joints):
                 end = min(hi, stop[j])
                 if end > lo:
-                    group = groups.setdefault((id(xy.correction), dof), [xy.correction, dof, [], 0])
-                    parts[j].append(((id(xy.correction), dof), group[3], end - lo, lo))
-                    group[2].append(ts[lo:end] - c0)
-                    group[3] += end - lo
-        values = {}
-        for key, (correction, dof, local, _) in groups.items():
-            x, grid = np.concatenate(local), np.arange(correction.shape[1]) * self.period
-            values[key] = [np.interp(x, grid, correction[q, :, dof]) for q in range(3)]
+                    parts[j].append((bases[id(xy.correction)] + 3 * length * dof, length, c0, lo, end))
         for j in XY:
             if parts[j]:
-                where = np.concatenate([np.arange(lo, lo + n) for _, _, n, lo in parts[j]])
-                for q in range(3):
-                    np.add.at(out[j][q], where, np.concatenate([values[key][q][o:o + n] for key, o, n, _ in parts[j]]))
+                offset, length, c0, lo, end = (np.array(x) for x in zip(*parts[j]))
+                add_corrections(table, offset, length, c0, lo, end, self.period, ts, out[j])
+
+    def _corrections(self) -> tuple[np.ndarray, dict[int, int]]:
+        """Every distinct correction in one flat table, per dof its p, v and a samples one
+        after the other, and where each correction (by identity) begins in it."""
+        if self._table is None or self._table[2] != len(self.entries):
+            bases: dict[int, int] = {}
+            blocks: list[np.ndarray] = []
+            size = 0
+            for _, xy, _ in self.entries:
+                if xy.correction is not None and id(xy.correction) not in bases:
+                    bases[id(xy.correction)] = size
+                    blocks.append(np.moveaxis(xy.correction, 2, 0).ravel())  # (dofs, 3, k)
+                    size += blocks[-1].size
+            self._table = (np.concatenate(blocks) if blocks else np.zeros(0), bases, len(self.entries))
+        return self._table[0], self._table[1]
 
     def _times(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Per entry: its move's start and end, its correction's first and last instant."""

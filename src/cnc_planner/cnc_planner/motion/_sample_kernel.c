@@ -66,6 +66,31 @@ static int take(PyObject *obj, Py_buffer *view, int writable, const char *format
     return 0;
 }
 
+/* The arguments' buffers: obj[k] into view[k], integer ("l") where formats[k] is 'l',
+ * writable from index ``writable`` on; how many were taken (all, or an error is set). */
+static int take_all(PyObject **obj, Py_buffer *view, int count, const char *formats, int writable,
+                    const char *const *names)
+{
+    int taken = 0;
+    while (taken < count) {
+        const char format[2] = {formats[taken], 0};
+        if (take(obj[taken], &view[taken], taken >= writable, format, names[taken]) < 0)
+            break;
+        taken++;
+    }
+    return taken;
+}
+
+/* Release the buffers taken; None, or NULL with the error set when not ok. */
+static PyObject *finish(Py_buffer *view, int taken, int ok)
+{
+    for (int k = 0; k < taken; k++)
+        PyBuffer_Release(&view[k]);
+    if (!ok)
+        return NULL;
+    Py_RETURN_NONE;
+}
+
 #define AT(view, type, i) (*(type *)((char *)(view).buf + (i) * (view).strides[0]))
 
 enum { TABLE, STARTS, LO, HI, TS, P, V, A, ARRAYS };
@@ -79,13 +104,7 @@ static PyObject *spans_py(PyObject *self, PyObject *args)
     if (!PyArg_ParseTuple(args, "OOOOOOOO:spans", &obj[TABLE], &obj[STARTS], &obj[LO], &obj[HI], &obj[TS],
                           &obj[P], &obj[V], &obj[A]))
         return NULL;
-    int taken = 0;
-    while (taken < ARRAYS) {
-        const char *format = taken == LO || taken == HI ? "l" : "d";
-        if (take(obj[taken], &view[taken], taken >= P, format, NAMES[taken]) < 0)
-            break;
-        taken++;
-    }
+    int taken = take_all(obj, view, ARRAYS, "ddlldddd", P, NAMES);
     int ok = taken == ARRAYS;
     Py_ssize_t pieces = 0, n = 0;
     if (ok) {
@@ -122,11 +141,7 @@ static PyObject *spans_py(PyObject *self, PyObject *args)
         }
         Py_END_ALLOW_THREADS
     }
-    for (int k = 0; k < taken; k++)
-        PyBuffer_Release(&view[k]);
-    if (!ok)
-        return NULL;
-    Py_RETURN_NONE;
+    return finish(view, taken, ok);
 }
 
 /* np.interp(x, j * period for j < k, fp) at one x, as numpy computes it (its left and right
@@ -172,13 +187,7 @@ static PyObject *corrections_py(PyObject *self, PyObject *args)
                           &obj[C_START], &obj[C_LO], &obj[C_HI], &period, &obj[C_TS], &obj[C_P], &obj[C_V],
                           &obj[C_A]))
         return NULL;
-    int taken = 0;
-    while (taken < C_ARRAYS) {
-        const char *format = taken == C_OFFSET || taken == C_LENGTH || taken == C_LO || taken == C_HI ? "l" : "d";
-        if (take(obj[taken], &view[taken], taken >= C_P, format, C_NAMES[taken]) < 0)
-            break;
-        taken++;
-    }
+    int taken = take_all(obj, view, C_ARRAYS, "dlldlldddd", C_P, C_NAMES);
     int ok = taken == C_ARRAYS;
     Py_ssize_t parts = 0, n = 0, size = 0;
     if (ok) {
@@ -225,11 +234,7 @@ static PyObject *corrections_py(PyObject *self, PyObject *args)
         }
         Py_END_ALLOW_THREADS
     }
-    for (int k = 0; k < taken; k++)
-        PyBuffer_Release(&view[k]);
-    if (!ok)
-        return NULL;
-    Py_RETURN_NONE;
+    return finish(view, taken, ok);
 }
 
 static PyMethodDef METHODS[] = {

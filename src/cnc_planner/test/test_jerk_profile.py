@@ -42,10 +42,10 @@ def test_bulk_sampling_equals_at_time_with_and_without_brakes():
 
 
 def test_one_call_over_many_pieces_equals_each_sampler_bit_for_bit():
-    """sample_spans (the compiled kernel a timeline samples its ruckig pieces with) gives
-    exactly the values of each dof's own numpy sampler at its local instants (plan time
+    """sample_spans over many pieces at once (as a timeline samples its ruckig pieces)
+    gives exactly each dof's own TrajectorySampler values at its local instants (plan time
     minus the piece's start), with and without brakes, into strided outputs as a plan's
-    columns are: plans hashed before and after must not differ by one ulp."""
+    columns are."""
     rows, starts, lo, hi, expected, ts = [], [], [], [], [], []
     n = 0
     for k, trajectory in enumerate(random_trajectories(300, seed=11)):

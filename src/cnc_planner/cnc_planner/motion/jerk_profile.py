@@ -1,19 +1,17 @@
-"""Bulk sampling of a ruckig trajectory with numpy.
+"""Bulk sampling of ruckig trajectories, compiled.
 
 `Trajectory.at_time` costs one Python call per instant, which dominated planning (a job
 samples millions of instants). A ruckig trajectory without intermediate waypoints is, per
 degree of freedom, an optional two-phase brake pre-trajectory followed by seven phases of
 constant jerk, then constant acceleration past its end. This module reads those phases once
-(`Trajectory.profiles`) and evaluates any number of instants with the same formula and the
-same case split as ruckig's `at_time`, so the results equal it up to float rounding.
-A timeline's many pieces are sampled in one call of a compiled kernel (sample_spans,
-_sample_kernel.c) that evaluates the same operations, so it equals this module's numpy
-evaluation bit for bit.
+(`Trajectory.profiles`) into one row per dof, and a small compiled kernel
+(_sample_kernel.c, built by setup.py) evaluates any number of instants with the same
+formula and the same case split as ruckig's `at_time`, so the results equal it up to float
+rounding (tested); a timeline's many pieces are sampled in one call (sample_spans).
 """
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
 
 import numpy as np
 from ruckig import Trajectory
@@ -27,44 +25,13 @@ from cnc_planner.motion._sample_kernel import spans as _spans
 ROW_LENGTH = 58
 
 
-@dataclass(frozen=True)
-class _Phases:
-    """One degree of freedom's phases, as ruckig's at_time reads them."""
-
-    brake_duration: float
-    brake_t0: float
-    brake_pvaj: np.ndarray  # (4, 2): p, v, a, j at the start of each brake phase
-    t_sum: np.ndarray       # (7,): end time of each phase after the brake
-    start: np.ndarray       # (0: 0, 1..7: t_sum), the phase's start time
-    pvaj: np.ndarray        # (4, 8): p, v, a at each phase boundary; j per phase (j[7] = 0)
-
-
-def _integrate(t, p0, v0, a0, j):
-    """ruckig's integrate(): the state after t at constant jerk j (same operation order)."""
-    return (p0 + t * (v0 + t * (a0 / 2 + t * j / 6)),
-            v0 + t * (a0 + t * j / 2),
-            a0 + t * j)
-
-
-def _integrate_into(t, p0, v0, a0, j) -> np.ndarray:
-    """_integrate as one (3, len(t)) array, t * j computed once (the same values)."""
-    out = np.empty((3, len(t)))
-    tj = t * j
-    np.add(a0, tj, out=out[2])
-    out[1] = v0 + t * (a0 + tj / 2)
-    out[0] = p0 + t * (v0 + t * (a0 / 2 + tj / 6))
-    return out
-
-
-def _phases(profile) -> _Phases:
+def _row(profile, duration: float) -> list[float]:
+    """One dof's phases (a ruckig Profile) as a row: the phases' end times summed in order
+    (as ruckig sums them), their start states and jerks (none past the end), the brake's."""
+    t_sum = list(itertools.accumulate(profile.t))
     brake = profile.brake
-    t_sum = list(itertools.accumulate(profile.t))  # in order, as numpy's cumsum adds
-    return _Phases(
-        brake_duration=float(brake.duration), brake_t0=float(brake.t[0]),
-        brake_pvaj=np.array([brake.p, brake.v, brake.a, brake.j], dtype=float),
-        t_sum=np.array(t_sum, dtype=float), start=np.array([0.0, *t_sum], dtype=float),
-        pvaj=np.array([profile.p, profile.v, profile.a, [*profile.j, 0.0]], dtype=float),
-    )
+    return [*t_sum, 0.0, *t_sum, *profile.p, *profile.v, *profile.a, *profile.j, 0.0,
+            duration, brake.duration, brake.t[0], *brake.p, *brake.v, *brake.a, *brake.j]
 
 
 class TrajectorySampler:
@@ -75,42 +42,17 @@ class TrajectorySampler:
         sections = trajectory.profiles
         if len(sections) != 1:  # waypoints need ruckig's cloud solver, which we never use
             raise ValueError("only trajectories without intermediate waypoints can be bulk-sampled")
-        self._phases = [_phases(p) for p in sections[0]]
-        # Per dof, its phases as one flat row (ROW_LENGTH) for sample_spans.
-        self.rows = [np.concatenate((ph.t_sum, ph.start, ph.pvaj.ravel(), [self.duration, ph.brake_duration,
-                                     ph.brake_t0], ph.brake_pvaj.ravel())) for ph in self._phases]
+        self._table = np.array([_row(p, self.duration) for p in sections[0]], dtype=float)
+        self.rows = list(self._table)  # per dof, its row for sample_spans
 
     def sample(self, t: np.ndarray) -> np.ndarray:
         """Array (3, len(t), dofs): position, velocity, acceleration at the instants t (s)."""
         t = np.asarray(t, dtype=float)
-        if len(self._phases) == 1:  # the usual case: no copy into a (3, len(t), 1) array
-            return self._sample_dof(self._phases[0], t)[:, :, None]
-        out = np.empty((3, len(t), len(self._phases)))
-        for dof, ph in enumerate(self._phases):
-            out[:, :, dof] = self._sample_dof(ph, t)
+        out = np.empty((3, len(t), len(self.rows)))
+        for dof in range(len(self.rows)):
+            sample_spans(self._table[dof:dof + 1], np.zeros(1), np.zeros(1, np.intp), np.full(1, len(t)), t,
+                         (out[0, :, dof], out[1, :, dof], out[2, :, dof]))
         return out
-
-    def _sample_dof(self, ph: _Phases, t: np.ndarray) -> np.ndarray:
-        if ph.brake_duration <= 0:
-            # Phase 7 (past the last phase) is the constant-acceleration tail, and with no
-            # brake ruckig's "after the end" case is that phase exactly (even where the
-            # phases' sum rounds a little past the trajectory's duration).
-            index = np.searchsorted(ph.t_sum, t, side="right")
-            index[t >= self.duration] = 7
-            return _integrate_into(t - ph.start[index], *ph.pvaj[:, index])
-        p0, v0, a0, j = ph.pvaj[:, np.full(len(t), 7)]
-        dt = t - (ph.brake_duration + ph.t_sum[-1])  # past the end: from the final state
-        inside = t < self.duration
-        brake = inside & (t < ph.brake_duration)
-        index = (t[brake] >= ph.brake_t0).astype(int)
-        dt[brake] = t[brake] - np.where(index > 0, ph.brake_t0, 0.0)
-        p0[brake], v0[brake], a0[brake], j[brake] = ph.brake_pvaj[:, index]
-        rest = inside & ~brake
-        local = t[rest] - ph.brake_duration
-        index = np.searchsorted(ph.t_sum, local, side="right")
-        dt[rest] = local - ph.start[index]
-        p0[rest], v0[rest], a0[rest], j[rest] = ph.pvaj[:, index]
-        return np.array(_integrate(dt, p0, v0, a0, j))
 
 
 def sample_spans(rows: np.ndarray, starts: np.ndarray, lo: np.ndarray, hi: np.ndarray, ts: np.ndarray,

@@ -510,3 +510,21 @@ def test_a_plans_samples_are_each_pieces_own_values_at_its_own_instants():
                 for q in range(3):
                     assert np.array_equal(sampled[q][inside, i], own[q]), (joint, piece.start, "pva"[q])
     assert shared > 10  # moves used by more than one piece: the case the test is about
+
+
+def test_a_writing_sampler_writes_into_the_timelines_samples_and_still_samples_alone():
+    """A WritingSampler piece (the drill's X/Y command) writes straight into the arrays a
+    timeline fills, at its local instants; called alone it returns the same samples."""
+    from cnc_planner.motion.timeline import WritingSampler
+
+    class Ramp(WritingSampler):
+        def write(self, t, out):
+            out[0][:], out[1][:], out[2][:] = 1.0 + 2.0 * t, 2.0, 0.0
+
+    timeline = JointTimeline(1.0)
+    timeline.add(Piece(0.5, 1.0, Ramp()), 3.0)
+    ts = np.arange(0.0, 2.0, 0.25)
+    p, v, a = timeline.sample(ts)
+    assert p.tolist() == [1.0, 1.0, 1.0, 1.5, 2.0, 2.5, 3.0, 3.0]
+    assert v.tolist() == [0.0, 0.0, 2.0, 2.0, 2.0, 2.0, 0.0, 0.0]
+    assert [x.tolist() for x in Ramp()(np.array([0.0, 0.5]))] == [[1.0, 2.0], [2.0, 2.0], [0.0, 0.0]]

@@ -23,6 +23,19 @@ Sampler = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
 Correction = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 
+class WritingSampler:
+    """A sampler that writes its samples into given arrays (p, v, a views of a plan's
+    sample): a piece as long as a whole cycle costs no arrays of its own."""
+
+    def write(self, t: np.ndarray, out: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
+        raise NotImplementedError
+
+    def __call__(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        out = (np.empty_like(t), np.empty_like(t), np.empty_like(t))
+        self.write(t, out)
+        return out
+
+
 @dataclass(frozen=True)
 class Piece:
     start: float
@@ -188,7 +201,10 @@ class JointTimeline:
             others = held[~self._ruckig[first + held]]
         for k in others.tolist():
             piece, k_lo, k_hi = self.pieces[first + k], int(lo[k]), int(hi[k])
-            p[k_lo:k_hi], v[k_lo:k_hi], a[k_lo:k_hi] = piece.sample(ts[k_lo:k_hi] - piece.start)
+            if isinstance(piece.sample, WritingSampler):
+                piece.sample.write(ts[k_lo:k_hi] - piece.start, (p[k_lo:k_hi], v[k_lo:k_hi], a[k_lo:k_hi]))
+            else:
+                p[k_lo:k_hi], v[k_lo:k_hi], a[k_lo:k_hi] = piece.sample(ts[k_lo:k_hi] - piece.start)
         return p, v, a
 
     def _index_pieces(self) -> None:

@@ -7,7 +7,7 @@ import numpy as np
 from cnc_planner.kinds.drill.xy_moves import XY, XY_COMMAND_LEAD, XYMove
 from cnc_planner.motion.builder import PlanBuilder
 from cnc_planner.motion.jerk_profile import add_corrections, sample_spans
-from cnc_planner.motion.timeline import Piece
+from cnc_planner.motion.timeline import Piece, WritingSampler
 
 
 class XYCommand:
@@ -19,7 +19,6 @@ class XYCommand:
         self.start = {j: start[j] for j in XY}
         self.period = period
         self.entries: list[tuple[float, XYMove, float]] = []  # (move start, move, correction start)
-        self._cache: tuple[tuple, dict] | None = None
         self._reach: np.ndarray | None = None
         self._times_cache: tuple[np.ndarray, ...] | None = None
         self._table: tuple[np.ndarray, dict[int, int], int] | None = None  # _corrections', for so many entries
@@ -37,66 +36,46 @@ class XYCommand:
     def end(self) -> float:
         return max(max(t + xy.duration, c + (xy.correction_samples - 1) * self.period) for t, xy, c in self.entries)
 
-    def sample(self, ts: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
-        """Commands at sorted instants ts. Only the entries that reach into [ts[0], ts[-1]]
-        are evaluated, each on its own index range, so a chunk costs the same at any hole.
+    def sample_axis(self, j: str, ts: np.ndarray, out: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
+        """Axis j's command at sorted instants ts, written into ``out`` (p, v, a). Only the
+        entries that reach into [ts[0], ts[-1]] are evaluated, each on its own index range,
+        so a chunk costs the same at any hole.
 
         A move sets its axes from its start on (its samples, then its target held), so
         a later move of an axis overrides everything an earlier one did from the later
         one's start: each entry writes and corrects only up to there.
         """
-        key = (len(ts), float(ts[0]), float(ts[-1])) if len(ts) else (0, 0.0, 0.0)
-        if self._cache is not None and self._cache[0] == key:
-            return self._cache[1]
         first = self._first_entry(ts[0]) if len(ts) else len(self.entries)
-        held = self._held(first)
-        out = {j: [np.full_like(ts, held[j]), np.zeros_like(ts), np.zeros_like(ts)] for j in XY}
-        if len(ts):
-            self._write(ts, first, out)
-        self._cache = (key, out)
-        return out
-
-    def _write(self, ts: np.ndarray, first: int, out: dict[str, list[np.ndarray]]) -> None:
-        """The entries from ``first`` that reach into ts written into ``out``: the moves'
-        samples and then their corrections, each in one call per axis (sample_spans,
-        add_corrections)."""
+        out[0][:] = self._held(first)[j]
+        out[1][:] = 0.0
+        out[2][:] = 0.0
+        if not len(ts):
+            return
         t_s1, ends, c0s, c_ends = self._times()
         last = first + int(np.argmax(np.append(np.minimum(t_s1[first:], c0s[first:]) > ts[-1], True)))
         bounds = np.searchsorted(ts, np.stack((t_s1[first:last], ends[first:last]), axis=1), side="left")
         c_lo = np.searchsorted(ts, c0s[first:last], side="left").tolist()
         c_hi = np.searchsorted(ts, c_ends[first:last], side="right").tolist()
-        window = [(*self.entries[first + i], lo, hi) for i, (lo, hi) in enumerate(bounds.tolist())]
-        overridden = {j: len(ts) for j in XY}  # where the next move of each axis starts
-        until = []
-        for _, xy, _, lo, _ in reversed(window):
-            until.append({j: overridden[j] for j in xy.joints})
-            overridden.update({j: lo for j in xy.joints})
-        until.reverse()
-        batch: dict[str, list] = {j: [] for j in XY}  # (row, start, lo, end) of each move's part
-        for (t_s1_i, xy, _, lo, hi), stop in zip(window, until):
-            for dof, j in enumerate(xy.joints):
-                out[j][0][hi:stop[j]] = xy.target[j]
-                end = min(hi, stop[j])
-                if end > lo:
-                    batch[j].append((xy.move.row(dof), t_s1_i, lo, end))
-        for j in XY:
-            if batch[j]:
-                sample_spans(*(np.array(x) for x in zip(*batch[j])), ts, out[j])
-        # Corrections, added in entry order: a correction's lead overlaps the tail before it.
+        # The entries that move this axis, each up to where the next of them starts.
+        window = [(*self.entries[first + i], lo, hi, c_lo[i], c_hi[i]) for i, (lo, hi) in enumerate(bounds.tolist())
+                  if j in self.entries[first + i][1].joints]
+        stops = [w[3] for w in window[1:]] + [len(ts)]
+        moves, parts = [], []  # (row, start, lo, end); (offset, length, c0, lo, end)
         table, bases = self._corrections()
-        parts: dict[str, list[tuple[int, int, float, int, int]]] = {j: [] for j in XY}  # (offset, length, c0, lo, end)
-        for (_, xy, c0, _, _), stop, lo, hi in zip(window, until, c_lo, c_hi):
-            if xy.correction is None:  # a move planned without one (no headroom for it)
-                continue
-            length = xy.correction.shape[1]
-            for dof, j in enumerate(xy.joints):
-                end = min(hi, stop[j])
-                if end > lo:
-                    parts[j].append((bases[id(xy.correction)] + 3 * length * dof, length, c0, lo, end))
-        for j in XY:
-            if parts[j]:
-                offset, length, c0, lo, end = (np.array(x) for x in zip(*parts[j]))
-                add_corrections(table, offset, length, c0, lo, end, self.period, ts, out[j])
+        for (t_s1_i, xy, c0, lo, hi, lo_c, hi_c), stop in zip(window, stops):
+            dof = xy.joints.index(j)
+            out[0][hi:stop] = xy.target[j]
+            if min(hi, stop) > lo:
+                moves.append((xy.move.row(dof), t_s1_i, lo, min(hi, stop)))
+            if xy.correction is not None and min(hi_c, stop) > lo_c:  # None: no headroom for one
+                length = xy.correction.shape[1]
+                parts.append((bases[id(xy.correction)] + 3 * length * dof, length, c0, lo_c, min(hi_c, stop)))
+        if moves:
+            sample_spans(*(np.array(x) for x in zip(*moves)), ts, out)
+        # Corrections, added in entry order: a correction's lead overlaps the tail before it.
+        if parts:
+            offset, length, c0, lo, end = (np.array(x) for x in zip(*parts))
+            add_corrections(table, offset, length, c0, lo, end, self.period, ts, out)
 
     def _corrections(self) -> tuple[np.ndarray, dict[int, int]]:
         """Every distinct correction in one flat table, per dof its p, v and a samples one
@@ -149,8 +128,17 @@ class XYCommand:
         for _, xy, _ in self.entries:
             final.update(xy.target)
         for j in XY:
-            def sample(t: np.ndarray, j: str = j) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-                return tuple(self.sample(t + begin)[j])  # type: ignore[return-value]
+            builder.timelines[j].add(Piece(begin, end - begin, _AxisCommand(self, j, begin)), final[j])
 
-            builder.timelines[j].add(Piece(begin, end - begin, sample), final[j])
 
+class _AxisCommand(WritingSampler):
+    """One axis of an XYCommand as a timeline piece, written straight into the plan's
+    samples (a long cycle's piece spans all of it: no copies of its arrays)."""
+
+    def __init__(self, command: XYCommand, joint: str, begin: float) -> None:
+        self.command = command
+        self.joint = joint
+        self.begin = begin
+
+    def write(self, t: np.ndarray, out: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
+        self.command.sample_axis(self.joint, t + self.begin, out)

@@ -289,3 +289,17 @@ def test_s1_crossings_shared_by_a_displacement_equal_each_moves_own_scan(compens
         assert xy.leave == max(ts[left[0]] - CROSSING_STEP, 0.0)
         assert xy.arrive == ts[away[-1]] + CROSSING_STEP
         position = hole
+
+
+def test_holes_of_one_pitch_share_their_air_arcs(monkeypatch):
+    """A row of one pitch asks for the very same air arcs at every hole: each distinct
+    Z move is planned once (ruckig called per distinct move, not per hole and round)."""
+    from cnc_planner.kinds.drill import z_axis
+
+    planned = []
+    z_move = z_axis.z_move
+    monkeypatch.setattr(z_axis, "z_move", lambda *args, **kw: planned.append(args) or z_move(*args, **kw))
+    cycle = make_cycle(0.01, 0.003, n=40)
+    infos = plan_drilling(PlanBuilder(MACHINE, start_of(cycle)), cycle)
+    assert len(infos) == 40
+    assert len(planned) == len(set(planned)) < 40  # 277 calls when every hole planned its own

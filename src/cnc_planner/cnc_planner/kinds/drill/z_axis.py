@@ -91,6 +91,7 @@ class ZAxis:
         if start_z < cycle.r_z:
             raise DrillError("drill", "the tool must start above the R plane")
         self._strokes: dict[tuple[float, float], RuckigMove] = {}
+        self._arcs: dict[tuple, RuckigMove] = {}
 
     def stroke(self, top: float, turn: float) -> RuckigMove:
         """The plain feed stroke from a hole's R plane, at feed, to the turning point."""
@@ -109,6 +110,11 @@ class ZAxis:
     def arc(self, state: tuple[float, float, float], plane: float, accel: float | None = None,
             duration: float = 0.0) -> RuckigMove:
         """The air move from a state at the X/Y plane (or the start) to ``plane`` at the
-        entry velocity (DrillCycle.entry_velocity), at ``accel`` and lasting ``duration`` if given."""
-        lim = Limits(self.rapid.velocity, accel or self.rapid.acceleration, self.rapid.jerk)
-        return z_move(lim, *state, plane, self.entry, 0.0, duration)
+        entry velocity (DrillCycle.entry_velocity), at ``accel`` and lasting ``duration`` if given.
+        Holes of one pitch and depth ask for the very same arcs (a plate of 10,000 holes for
+        39): each is planned once."""
+        key = (tuple(state), plane, accel, duration)
+        if key not in self._arcs:
+            lim = Limits(self.rapid.velocity, accel or self.rapid.acceleration, self.rapid.jerk)
+            self._arcs[key] = z_move(lim, *state, plane, self.entry, 0.0, duration)
+        return self._arcs[key]

@@ -2,12 +2,33 @@
 corrections as one timeline piece per axis."""
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from cnc_planner.kinds.drill.xy_moves import XY, XY_COMMAND_LEAD, XYMove
 from cnc_planner.motion.builder import PlanBuilder
-from cnc_planner.motion.jerk_profile import add_corrections, sample_spans
+from cnc_planner.motion.jerk_profile import ROW_LENGTH, add_corrections, sample_spans
 from cnc_planner.motion.timeline import Piece, WritingSampler
+
+
+@dataclass
+class _AxisEntries:
+    """The entries of an XYCommand that move one axis, in order, as arrays: their index,
+    the move's row (sample_spans), start and end, the correction's first and last instant,
+    the target, and where the correction lies in the table (offset -1: none) and its length;
+    ``count``: the entries there were (entries are only ever appended)."""
+
+    count: int
+    entry: np.ndarray
+    rows: np.ndarray
+    t_s1: np.ndarray
+    ends: np.ndarray
+    c0: np.ndarray
+    c_end: np.ndarray
+    target: np.ndarray
+    offset: np.ndarray
+    length: np.ndarray
 
 
 class XYCommand:
@@ -22,6 +43,7 @@ class XYCommand:
         self._reach: np.ndarray | None = None
         self._times_cache: tuple[np.ndarray, ...] | None = None
         self._table: tuple[np.ndarray, dict[int, int], int] | None = None  # _corrections', for so many entries
+        self._axes: dict[str, _AxisEntries] = {}
         self._held_after: list[dict[str, float]] = [dict(self.start)]  # _held's, per entry
 
     def add(self, t_s1: float, xy: XYMove) -> None:
@@ -46,36 +68,52 @@ class XYCommand:
         one's start: each entry writes and corrects only up to there.
         """
         first = self._first_entry(ts[0]) if len(ts) else len(self.entries)
-        out[0][:] = self._held(first)[j]
+        held = self._held(first)[j]
         out[1][:] = 0.0
         out[2][:] = 0.0
-        if not len(ts):
+        t_s1, _, c0s, _ = self._times()
+        last = first + int(np.argmax(np.append(np.minimum(t_s1[first:], c0s[first:]) > ts[-1], True))) if len(ts) else first
+        axis = self._axis(j)
+        a, b = np.searchsorted(axis.entry, [first, last]).tolist()
+        if a == b:
+            out[0][:] = held
             return
-        t_s1, ends, c0s, c_ends = self._times()
-        last = first + int(np.argmax(np.append(np.minimum(t_s1[first:], c0s[first:]) > ts[-1], True)))
-        bounds = np.searchsorted(ts, np.stack((t_s1[first:last], ends[first:last]), axis=1), side="left")
-        c_lo = np.searchsorted(ts, c0s[first:last], side="left").tolist()
-        c_hi = np.searchsorted(ts, c_ends[first:last], side="right").tolist()
-        # The entries that move this axis, each up to where the next of them starts.
-        window = [(*self.entries[first + i], lo, hi, c_lo[i], c_hi[i]) for i, (lo, hi) in enumerate(bounds.tolist())
-                  if j in self.entries[first + i][1].joints]
-        stops = [w[3] for w in window[1:]] + [len(ts)]
-        moves, parts = [], []  # (row, start, lo, end); (offset, length, c0, lo, end)
-        table, bases = self._corrections()
-        for (t_s1_i, xy, c0, lo, hi, lo_c, hi_c), stop in zip(window, stops):
-            dof = xy.joints.index(j)
-            out[0][hi:stop] = xy.target[j]
-            if min(hi, stop) > lo:
-                moves.append((xy.move.row(dof), t_s1_i, lo, min(hi, stop)))
-            if xy.correction is not None and min(hi_c, stop) > lo_c:  # None: no headroom for one
-                length = xy.correction.shape[1]
-                parts.append((bases[id(xy.correction)] + 3 * length * dof, length, c0, lo_c, min(hi_c, stop)))
-        if moves:
-            sample_spans(*(np.array(x) for x in zip(*moves)), ts, out)
+        # The entries from first to last that move this axis, each up to where the next starts.
+        lo = np.searchsorted(ts, axis.t_s1[a:b], side="left")
+        stop = np.append(lo[1:], len(ts))
+        end = np.minimum(np.searchsorted(ts, axis.ends[a:b], side="left"), stop)
+        # Positions: held before the first move, each move's target after it (its samples
+        # in between are written next).
+        lengths = np.empty(2 * (b - a) + 1, dtype=np.intp)
+        values = np.zeros(len(lengths))
+        lengths[0], lengths[1::2], lengths[2::2] = lo[0], end - lo, stop - end
+        values[0], values[2::2] = held, axis.target[a:b]
+        out[0][:] = np.repeat(values, lengths)
+        moving = end > lo
+        sample_spans(axis.rows[a:b][moving], axis.t_s1[a:b][moving], lo[moving], end[moving], ts, out)
         # Corrections, added in entry order: a correction's lead overlaps the tail before it.
-        if parts:
-            offset, length, c0, lo, end = (np.array(x) for x in zip(*parts))
-            add_corrections(table, offset, length, c0, lo, end, self.period, ts, out)
+        c_lo = np.searchsorted(ts, axis.c0[a:b], side="left")
+        c_end = np.minimum(np.searchsorted(ts, axis.c_end[a:b], side="right"), stop)
+        corrected = (axis.offset[a:b] >= 0) & (c_end > c_lo)  # offset -1: a move without headroom for one
+        add_corrections(self._corrections()[0], axis.offset[a:b][corrected], axis.length[a:b][corrected],
+                        axis.c0[a:b][corrected], c_lo[corrected], c_end[corrected], self.period, ts, out)
+
+    def _axis(self, j: str) -> _AxisEntries:
+        """The entries that move axis j, as arrays (built once per change of the entries)."""
+        if j not in self._axes or self._axes[j].count != len(self.entries):
+            t_s1, ends, c0, c_end = self._times()
+            table, bases = self._corrections()
+            entry = [k for k, (_, xy, _) in enumerate(self.entries) if j in xy.joints]
+            moves = [(self.entries[k][1], self.entries[k][1].joints.index(j)) for k in entry]
+            self._axes[j] = _AxisEntries(
+                count=len(self.entries), entry=np.array(entry, dtype=np.intp),
+                rows=np.array([xy.move.row(dof) for xy, dof in moves]).reshape(-1, ROW_LENGTH),
+                t_s1=t_s1[entry], ends=ends[entry], c0=c0[entry], c_end=c_end[entry],
+                target=np.array([xy.target[j] for xy, _ in moves]),
+                offset=np.array([bases[id(xy.correction)] + 3 * xy.correction_samples * dof
+                                 if xy.correction is not None else -1 for xy, dof in moves], dtype=np.intp),
+                length=np.array([xy.correction_samples for xy, _ in moves], dtype=np.intp))
+        return self._axes[j]
 
     def _corrections(self) -> tuple[np.ndarray, dict[int, int]]:
         """Every distinct correction in one flat table, per dof its p, v and a samples one

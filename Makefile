@@ -24,7 +24,8 @@ browser:
 	  apt-get install -y -qq --no-install-recommends chromium fonts-liberation >/dev/null; }
 
 $(STAMP): requirements.txt src/cnc_msgs_py/setup.py src/cnc_analysis/setup.py src/cnc_planner/setup.py src/cnc_servo_bridge/setup.py \
-          src/cnc_servo_bridge/cnc_servo_bridge/_drive_kernel.c src/cnc_planner/cnc_planner/motion/_sample_kernel.c
+          src/cnc_servo_bridge/cnc_servo_bridge/_drive_kernel.c \
+          $(wildcard src/cnc_planner/cnc_planner/*.h src/cnc_planner/cnc_planner/*/*.c src/cnc_planner/cnc_planner/*/*/*.c)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -r requirements.txt

@@ -13,17 +13,19 @@ def config(pattern: str) -> list[str]:
     """Files of the workspace's config/ (shared by the packages), relative to this package."""
     return sorted(os.path.relpath(f, HERE) for f in glob(str(HERE.parents[1] / "config" / pattern)))
 
-# Bulk sampling of ruckig pieces (motion/_sample_kernel.c), compiled here (pip or colcon);
+# Bulk sampling of ruckig pieces (motion/_sample_kernel.c) and the drill's lag margins
+# (kinds/drill/_lag_kernel.c), compiled here (pip or colcon);
 # -ffp-contract=off keeps every multiply and add separately rounded, as numpy's are, so it
 # equals the numpy evaluation (a fused multiply-add would differ in the last bit).
-SAMPLE_KERNEL = Extension(f"{PACKAGE}.motion._sample_kernel", sources=[f"{PACKAGE}/motion/_sample_kernel.c"],
-                          extra_compile_args=["-O2", "-ffp-contract=off"])
+KERNELS = [Extension(f"{PACKAGE}.{name.replace('/', '.')}", sources=[f"{PACKAGE}/{name}.c"],
+                     depends=[f"{PACKAGE}/kernel_buffers.h"], extra_compile_args=["-O2", "-ffp-contract=off"])
+           for name in ("motion/_sample_kernel", "kinds/drill/_lag_kernel")]
 
 setup(
     name=PACKAGE,
     version="0.1.0",
     packages=find_packages(exclude=["test"]),
-    ext_modules=[SAMPLE_KERNEL],
+    ext_modules=KERNELS,
     package_data={PACKAGE: ["templates/*.j2"]},  # report.html's template, read by jinja2 from the package
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),

@@ -303,3 +303,51 @@ def test_holes_of_one_pitch_share_their_air_arcs(monkeypatch):
     infos = plan_drilling(PlanBuilder(MACHINE, start_of(cycle)), cycle)
     assert len(infos) == 40
     assert len(planned) == len(set(planned)) < 40  # 277 calls when every hole planned its own
+
+
+def _lag_margins_scan(fb, starts, into, out, hole_x, hole_y, tol):
+    """servo_lag's per-hole scan as numpy expressions (the reference the kernel replaced)."""
+    z = fb[:, 2]
+    down, up = np.zeros(len(into)), np.zeros(len(into))
+    ku = 0
+    for i in range(len(into)):
+        lo, hi = max(starts[i], ku), starts[i + 2]
+        low = z[lo:hi] < min(into[i], out[i])
+        if not low.any():
+            continue
+        kv = lo + int(np.argmax(low))
+        kw = hi if low[kv - lo:].all() else kv + int(np.argmin(low[kv - lo:]))
+        kb = kv + int(np.argmin(z[kv:kw]))
+        kd = lo + int(np.argmax(z[lo:hi] < into[i]))
+        ku = kb + int(np.argmin(z[kb:hi] < out[i]))
+        ku = hi if z[ku] < out[i] else ku
+        far = np.hypot(fb[lo:hi, 0] - hole_x[i], fb[lo:hi, 1] - hole_y[i]) > tol
+        before, after = np.nonzero(far[: kb - lo])[0], np.nonzero(far[kb - lo:])[0]
+        down[i] = (lo + before[-1] + 1 if len(before) else lo) - kd
+        up[i] = ku - (kb + after[0] if len(after) else hi)
+    return down, up
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_compiled_lag_scan_equals_the_numpy_scan(seed) -> None:
+    """The drive model's margins, hole after hole (_lag_kernel.margins), equal the numpy
+    scan they replaced: dips below one plane or both, holes never entered, pecks (several
+    visits), a tip still low when the next S1 starts, X/Y off the hole before and after."""
+    from cnc_planner.kinds.drill._lag_kernel import margins
+
+    rng = np.random.default_rng(seed)
+    holes = 40
+    starts = np.sort(rng.integers(0, 3000, holes + 2)).astype(np.intp)
+    starts[-2:] = 3000
+    t = np.arange(3000)
+    z = 0.002 + 0.001 * np.cos(t / rng.uniform(5, 40)) - rng.uniform(0, 0.004) * (np.sin(t / 23.0) > 0.3)
+    fb = np.stack((rng.normal(0, 8e-6, 3000) + (t % 97 < 5) * 1e-4, rng.normal(0, 8e-6, 3000), z), axis=1)
+    into, out = rng.choice([0.001, 0.002], holes), rng.choice([0.001, 0.002, 0.0025], holes)
+    hole_x, hole_y = rng.normal(0, 2e-6, holes), np.zeros(holes)
+    down, up = np.zeros(holes), np.zeros(holes)
+    margins(fb, starts, into, out, hole_x, hole_y, 1e-5, down, up)
+    expected = _lag_margins_scan(fb, starts, into, out, hole_x, hole_y, 1e-5)
+    assert np.array_equal(down, expected[0]) and np.array_equal(up, expected[1])
+    assert np.any(down != 0) and np.any(up != 0)  # late arrivals and early exits were there to find
+    with pytest.raises(ValueError, match="starts"):
+        margins(fb, starts[::-1].copy(), into, out, hole_x, hole_y, 1e-5, down, up)

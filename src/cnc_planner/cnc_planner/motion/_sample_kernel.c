@@ -12,9 +12,7 @@
  * operations in the same order, no fused multiply-add (setup.py: -ffp-contract=off), so
  * the values equal numpy's; test_jerk_profile.py checks that.
  */
-#define PY_SSIZE_T_CLEAN
-#include <Python.h>
-#include <string.h>
+#include "../kernel_buffers.h"
 
 /* The row layout (jerk_profile.py): t_sum (7), start (8), p, v, a, j (8 each), the
  * duration, the brake's duration and second phase's start, its p, v, a, j (2 each). */
@@ -51,47 +49,6 @@ static void evaluate(const double *r, double t, double *p, double *v, double *a)
     *v = v0 + dt * (a0 + tj / 2);
     *p = p0 + dt * (v0 + dt * (a0 / 2 + tj / 6));
 }
-
-/* One array argument: float64 (or intp for lo/hi), one dimension, any stride. */
-static int take(PyObject *obj, Py_buffer *view, int writable, const char *format, const char *name)
-{
-    int flags = PyBUF_STRIDES | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
-    if (PyObject_GetBuffer(obj, view, flags) < 0)
-        return -1;
-    if (view->ndim > 2 || view->format == NULL || strcmp(view->format, format) != 0) {
-        PyErr_Format(PyExc_TypeError, "%s: expected an array of format '%s'", name, format);
-        PyBuffer_Release(view);
-        return -1;
-    }
-    return 0;
-}
-
-/* The arguments' buffers: obj[k] into view[k], integer ("l") where formats[k] is 'l',
- * writable from index ``writable`` on; how many were taken (all, or an error is set). */
-static int take_all(PyObject **obj, Py_buffer *view, int count, const char *formats, int writable,
-                    const char *const *names)
-{
-    int taken = 0;
-    while (taken < count) {
-        const char format[2] = {formats[taken], 0};
-        if (take(obj[taken], &view[taken], taken >= writable, format, names[taken]) < 0)
-            break;
-        taken++;
-    }
-    return taken;
-}
-
-/* Release the buffers taken; None, or NULL with the error set when not ok. */
-static PyObject *finish(Py_buffer *view, int taken, int ok)
-{
-    for (int k = 0; k < taken; k++)
-        PyBuffer_Release(&view[k]);
-    if (!ok)
-        return NULL;
-    Py_RETURN_NONE;
-}
-
-#define AT(view, type, i) (*(type *)((char *)(view).buf + (i) * (view).strides[0]))
 
 enum { TABLE, STARTS, LO, HI, TS, P, V, A, ARRAYS };
 static const char *const NAMES[ARRAYS] = {"rows", "starts", "lo", "hi", "ts", "p", "v", "a"};

@@ -17,6 +17,7 @@ import numpy as np
 from cnc_msgs_py.machine import Machine
 from cnc_servo_bridge.drive import DriveModel
 
+from cnc_planner.kinds.drill._lag_kernel import margins as lag_scan
 from cnc_planner.kinds.drill.cycle import DrillCycle, DrillError
 from cnc_planner.kinds.drill.z_axis import ZAxis
 from cnc_planner.motion.builder import PlanBuilder
@@ -66,31 +67,17 @@ class ServoLag:
         k0 = math.floor(t0 / period + 1e-9)
         ts = (k0 + np.arange(math.ceil((plan.duration - t0) / period) + 50)) * period
         fb = _feedback(self.machine, plan, ts, period)
-        z = fb[:, 2]
         starts = np.searchsorted(ts, [info["s1"] for info in infos] + [ts[-1] + 1.0, ts[-1] + 1.0])
-        down = np.zeros(self.n)
-        up = np.zeros(self.n)
-        ku = 0
-        for i, info in enumerate(infos):
-            # S1 may start a few periods before the previous hole's tip is out: skip that.
-            # X/Y moves into the hole above one plane and out of it above the next's.
-            lo, hi = max(starts[i], ku), starts[i + 2]
-            into, out = c.air_plane(i), c.air_plane(i + 1)
-            low = z[lo:hi] < min(into, out)  # one visit below both planes (pecks stay below R)
-            if not low.any():
-                continue
-            kv = lo + int(np.argmax(low))
-            kw = hi if low[kv - lo:].all() else kv + int(np.argmin(low[kv - lo:]))
-            kb = kv + int(np.argmin(z[kv:kw]))  # the hole's bottom
-            kd = lo + int(np.argmax(z[lo:hi] < into))
-            ku = kb + int(np.argmin(z[kb:hi] < out))
-            ku = hi if z[ku] < out else ku
-            # Off-hole samples before the hole's bottom are a late arrival, after it an early exit.
-            far = np.hypot(fb[lo:hi, 0] - info["x"], fb[lo:hi, 1] - info["y"]) > c.xy_tolerance
-            before = np.nonzero(far[: kb - lo])[0]
-            after = np.nonzero(far[kb - lo:])[0]
-            down[i] = (lo + before[-1] + 1 if len(before) else lo) - kd
-            up[i] = ku - (kb + after[0] if len(after) else hi)
+        # Per hole, from its S1 (or where the tip came back above the previous hole's
+        # plane) to the next hole's S1, in one compiled pass (_lag_kernel.c): X/Y moves into
+        # the hole above one plane and out of it above the next's; one visit below both
+        # (pecks stay below R), its bottom the hole's; off-hole samples before the bottom
+        # are a late arrival (down: after the tip went below the plane into the hole),
+        # after it an early exit (up: before the tip is back above the plane out of it).
+        down, up = np.zeros(self.n), np.zeros(self.n)
+        lag_scan(fb, starts.astype(np.intp), np.array([c.air_plane(i) for i in range(self.n)]),
+                 np.array([c.air_plane(i + 1) for i in range(self.n)]), np.array([info["x"] for info in infos]),
+                 np.array([info["y"] for info in infos]), c.xy_tolerance, down, up)
         return down, up
 
     def safe_gaps(self, emit: Emit, t0: float, e_down: np.ndarray, e_up: np.ndarray,

@@ -2,6 +2,7 @@
 coordinates, checked against the travel, in drilling order, with obstacles and vibration."""
 from __future__ import annotations
 
+import functools
 from types import SimpleNamespace
 
 from cnc_msgs_py.machine import Machine
@@ -41,7 +42,8 @@ def drill_cycle(job: SimpleNamespace, machine: Machine, kin: Kinematics,
         raise JobError("drill.feed", f"{to_mm_per_min(d.feed):g} mm/min is faster than the Z rapid "
                                      f"{to_mm_per_min(z_rapid):g} mm/min")
     holes, planes = [], []
-    z_of = lambda z: to_axes(kin, {"z": z}, "drill.surface_z")["z"]  # noqa: E731  (Z is not rotated on a mill)
+    # Z is not rotated on a mill; a plate's holes share a few surfaces: each converted once.
+    z_of = functools.cache(lambda z: to_axes(kin, {"z": z}, "drill.surface_z")["z"])
     for i, ((x, y), (surface, depth)) in enumerate(zip(d.holes, d.hole_planes)):
         bottom = to_axes(kin, {"x": x, "y": y, "z": surface - depth}, f"drill.holes[{i}]")
         check_travel(machine, bottom, f"drill.holes[{i}]")

@@ -351,3 +351,22 @@ def test_the_compiled_lag_scan_equals_the_numpy_scan(seed) -> None:
     assert np.any(down != 0) and np.any(up != 0)  # late arrivals and early exits were there to find
     with pytest.raises(ValueError, match="starts"):
         margins(fb, starts[::-1].copy(), into, out, hole_x, hole_y, 1e-5, down, up)
+
+
+def test_the_xy_table_holds_each_axis_where_its_last_move_left_it():
+    """XYMoveTable: after k moves each axis stands at the target of the last move that
+    moved it (the start before any); an X/Y command takes the table's moves in order only."""
+    from cnc_planner.kinds.drill.xy_command import XYCommand, XYMoveTable
+    from cnc_planner.kinds.drill.xy_moves import s1_moves
+
+    holes = [(0.01, 0.0), (0.01, 0.0), (0.02, 0.0), (0.02, 0.01), (0.0, 0.01)]
+    cycle = DrillCycle(holes=holes, surface_z=0.0, bottom_z=-0.002, r_z=0.002, feed=0.02)
+    start = {"x": 0.0, "y": -0.01, "z": 0.01}
+    moves = s1_moves(MACHINE, cycle, start)
+    table = XYMoveTable(start, moves, cycle.servo_period)
+    assert len(table.moves) == 4  # the repeated hole is no move
+    assert table.held["x"].tolist() == [0.0, 0.01, 0.02, 0.02, 0.0]
+    assert table.held["y"].tolist() == [-0.01, 0.0, 0.0, 0.01, 0.01]
+    command = XYCommand(table)
+    with pytest.raises(ValueError, match="order"):
+        command.add(0.0, table.moves[1])

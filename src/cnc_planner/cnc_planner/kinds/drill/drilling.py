@@ -25,6 +25,7 @@ from cnc_planner.kinds.drill.overlap import overlapped
 from cnc_planner.kinds.drill.retract import Retract, RetractLaw
 from cnc_planner.kinds.drill.servo_lag import ServoLag
 from cnc_planner.kinds.drill.strokes import Strokes
+from cnc_planner.kinds.drill.xy_command import XYMoveTable
 from cnc_planner.kinds.drill.xy_moves import s1_moves
 from cnc_planner.kinds.drill.z_axis import ZAxis
 from cnc_planner.motion.builder import PlanBuilder
@@ -81,10 +82,11 @@ def plan_drilling(builder: PlanBuilder, cycle: DrillCycle, energies: bool = True
     # laws are chosen once more, then the gaps settle.
     first = retracts(floor_down, floor_up)
     last = law.last(last_bottom, cycle.r_z)
-    e_down, e_up = lag.safe_gaps(overlapped(cycle, start, z, xy_moves, strokes, first, last), t0,
+    xy_table = XYMoveTable(start, xy_moves, period) if cycle.compensate_xy else None  # shared by every plan
+    e_down, e_up = lag.safe_gaps(overlapped(cycle, start, z, xy_moves, xy_table, strokes, first, last), t0,
                                  floor_down, floor_up, floor_down, floor_up, rounds=1)
     chosen = retracts(e_down, e_up)
-    emit = overlapped(cycle, start, z, xy_moves, strokes, chosen, last)
+    emit = overlapped(cycle, start, z, xy_moves, xy_table, strokes, chosen, last)
     e_down, e_up = lag.safe_gaps(emit, t0, e_down, e_up, floor_down, floor_up)
     accel = full
     if cycle.gentle_air_accel:

@@ -21,18 +21,20 @@ from cnc_planner.kinds.drill.cycle import DrillCycle
 from cnc_planner.kinds.drill.retract import LastRetract, Retract
 from cnc_planner.kinds.drill.servo_lag import Emit
 from cnc_planner.kinds.drill.strokes import Strokes
-from cnc_planner.kinds.drill.xy_command import XYCommand
+from cnc_planner.kinds.drill.xy_command import XYCommand, XYMoveTable
 from cnc_planner.kinds.drill.xy_moves import XY_COMMAND_LEAD, XYMove
 from cnc_planner.kinds.drill.z_axis import ZAxis, add_z
 from cnc_planner.motion.builder import PlanBuilder
 
 
-def overlapped(cycle: DrillCycle, start: dict[str, float], z: ZAxis, xy_moves: list[XYMove], strokes: Strokes,
-               retracts: list[Retract], last_retract: LastRetract) -> Emit:
+def overlapped(cycle: DrillCycle, start: dict[str, float], z: ZAxis, xy_moves: list[XYMove],
+               xy_table: XYMoveTable | None, strokes: Strokes, retracts: list[Retract],
+               last_retract: LastRetract) -> Emit:
     """Overlapped cycle: e_down[i] = Z at R after the X/Y command ends, e_up[i] = X/Y start
     after Z passed R up from hole i-1; accel[i] = Z acceleration limit of hole i's air move.
-    ``retracts``: per hole, its retract into the next air arc (the last hole's is unused:
-    ``last_retract`` ends the cycle)."""
+    ``xy_table``: the moves' table for their compensated command (None: plain ruckig moves,
+    compensate_xy off). ``retracts``: per hole, its retract into the next air arc (the last
+    hole's is unused: ``last_retract`` ends the cycle)."""
     n = len(xy_moves)
     approach_min = z.arc((start["z"], 0.0, 0.0), cycle.air_plane(0))
     arc_min = [approach_min.duration] + [z.arc(r.state, r.state[0]).duration for r in retracts[:-1]]
@@ -42,7 +44,7 @@ def overlapped(cycle: DrillCycle, start: dict[str, float], z: ZAxis, xy_moves: l
         u = t0  # when Z last passed R going up (the cycle start for the first hole)
         infos = []
         period = cycle.servo_period
-        command = XYCommand(start, period) if cycle.compensate_xy else None
+        command = XYCommand(xy_table) if xy_table is not None else None
         lead = XY_COMMAND_LEAD * period
         airs = []  # each hole's air move, for its energy
         for i, xy in enumerate(xy_moves):

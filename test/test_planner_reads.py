@@ -1,7 +1,8 @@
 """The planner reads joint_states and /clock when it needs them (poll), never one message
 at a time: in simulation both come many thousand times a second, and a Python callback
 for each was CPU the simulation's speed paid for. What it reads must still be the newest,
-under the machine's own names (a cell remaps /clock per machine)."""
+under the machine's own names (a cell remaps /clock per machine). And what it makes once
+(the chunks' serialized form) it makes at start, not in the first job's way."""
 from __future__ import annotations
 
 import time
@@ -52,4 +53,24 @@ def test_the_planner_takes_the_newest_feedback_and_clock_without_a_callback_each
         executor.shutdown()
         planner.destroy_node()
         machine.destroy_node()
+        rclpy.try_shutdown()
+
+
+def test_the_planners_first_chunk_finds_its_serialized_form_made_at_start():
+    """The chunks' serialized form (rosbags' types and generated code, 0.1 s) is made when
+    the planner starts: the first job's first chunk does not wait for it."""
+    import numpy as np
+
+    from cnc_msgs_py import trajectory_bytes
+
+    trajectory_bytes.layout.cache_clear()
+    rclpy.init(args=["--ros-args", "-r", "__ns:=/cnc"])
+    planner = PlannerNode()
+    try:
+        made = trajectory_bytes.layout.cache_info().misses
+        points = planner.executive.settings.chunk_points
+        trajectory_bytes.encode(tuple(planner.joints), 0, 1_000_000, *np.zeros((3, points, len(planner.joints))))
+        assert made >= 1 and trajectory_bytes.layout.cache_info().misses == made
+    finally:
+        planner.destroy_node()
         rclpy.try_shutdown()

@@ -113,8 +113,10 @@ class BridgeNode(LifecycleNode):
         self.max_steps = value(self, "steps_per_callback")
         self.joints = tuple(machine.joint_names)
         self.state_pub = self.create_publisher(JointState, topics.JOINT_STATES, qos.JOINT_STATES)
-        # One serialized message refilled for every sample (feedback_msg.py).
+        # One serialized message refilled for every sample (feedback_msg.py); the chunks'
+        # form read in place made now too, not while the first job's first chunk waits.
         self.state_msg = FeedbackBytes(self.joints)
+        trajectory_bytes.layout(self.joints, 2)
         self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS)
         self.clock_pub = self.create_publisher(Clock, topics.CLOCK, qos.CLOCK) if self.simulation else None
         self.inputs = [

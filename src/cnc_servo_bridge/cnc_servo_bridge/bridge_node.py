@@ -36,7 +36,7 @@ from cnc_msgs_py.node import run_node
 from cnc_msgs_py.parameters import Param, declare, value
 from cnc_msgs_py.units import NS
 
-from .feedback_msg import FeedbackBytes
+from .feedback_msg import ClockBytes, FeedbackBytes
 from .lockstep import Lockstep, WallPacing
 from .servo import DRIVES_DISABLED, Feedback, ServoLoop
 from .setpoints import SetpointError
@@ -119,6 +119,7 @@ class BridgeNode(LifecycleNode):
         trajectory_bytes.layout(self.joints, 2)
         self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS)
         self.clock_pub = self.create_publisher(Clock, topics.CLOCK, qos.CLOCK) if self.simulation else None
+        self.clock_msg = ClockBytes()
         self.inputs = [
             self.create_subscription(JointTrajectory, topics.JOINT_TRAJECTORY, self.on_trajectory, qos.JOINT_TRAJECTORY,
                                      raw=True),  # read in place (trajectory_bytes.py)
@@ -244,7 +245,7 @@ class BridgeNode(LifecycleNode):
         taken = self.loop.run(self.t_ns, count, hold_in_blocks=not self.simulation)
         for i, feedback in enumerate(taken, start=1 - len(taken)):
             if self.clock_pub is not None and self.steps % self.clock_every == 0:
-                self.clock_pub.publish(Clock(clock=stamp(feedback.stamp_ns)))
+                self.clock_pub.publish(self.clock_msg.fill(feedback.stamp_ns))
             if self.steps % self.publish_every == 0:
                 self.publish_feedback(feedback)
             # An alarm can only come from a block's last step (i == 0).

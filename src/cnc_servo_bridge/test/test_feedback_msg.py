@@ -1,14 +1,15 @@
-"""joint_states published as bytes read back as the message they stand for, by rclpy and
-by the bag reader (rosbags), at every joint count of the shipped machines."""
+"""joint_states and /clock published as bytes read back as the messages they stand for, by
+rclpy and by the bag reader (rosbags), at every joint count of the shipped machines."""
 import subprocess
 import sys
 
 import numpy as np
 from rclpy.serialization import deserialize_message
 from rosbags.typesys import Stores, get_typestore
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
-from cnc_servo_bridge.feedback_msg import FeedbackBytes
+from cnc_servo_bridge.feedback_msg import ClockBytes, FeedbackBytes
 
 
 def test_bytes_read_back_as_the_sample() -> None:
@@ -35,3 +36,14 @@ def test_a_sample_is_the_same_bytes_in_every_process() -> None:
     there = subprocess.run([sys.executable, "-c", writer], capture_output=True, text=True, check=True).stdout.strip()
     here = FeedbackBytes(["x", "y", "z", "spindle"]).fill(7, np.array([0.1, 0.2, 0.3, 0.4]), np.zeros(4))
     assert bytes.fromhex(there) == here
+
+
+def test_clock_bytes_read_back_as_the_time() -> None:
+    store = get_typestore(Stores.ROS2_JAZZY)
+    clock = ClockBytes()
+    for stamp_ns in (0, 999_999_999, 1_234_567_890_123):
+        data = clock.fill(stamp_ns)
+        msg = deserialize_message(data, Clock)
+        assert (msg.clock.sec, msg.clock.nanosec) == divmod(stamp_ns, 1_000_000_000)
+        bag_msg = store.deserialize_cdr(data, "rosgraph_msgs/msg/Clock")
+        assert (bag_msg.clock.sec, bag_msg.clock.nanosec) == divmod(stamp_ns, 1_000_000_000)

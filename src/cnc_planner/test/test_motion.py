@@ -528,3 +528,17 @@ def test_a_writing_sampler_writes_into_the_timelines_samples_and_still_samples_a
     assert p.tolist() == [1.0, 1.0, 1.0, 1.5, 2.0, 2.5, 3.0, 3.0]
     assert v.tolist() == [0.0, 0.0, 2.0, 2.0, 2.0, 2.0, 0.0, 0.0]
     assert [x.tolist() for x in Ramp()(np.array([0.0, 0.5]))] == [[1.0, 2.0], [2.0, 2.0], [0.0, 0.0]]
+
+
+def test_a_replaced_piece_is_sampled_as_replaced_after_the_timeline_was_sampled():
+    """A piece put in place of another (a settling correction superimposed on a ruckig
+    piece) is what later samples show, though the timeline kept the ruckig piece's row."""
+    move = point_to_point([0.0], [0.01], [Limits(0.5, 5.0, 100.0)])
+    timeline = JointTimeline(0.0)
+    timeline.add(Piece(0.0, move.duration, move.sampler(0)), 0.01)
+    ts = np.linspace(0.0, move.duration, 50, endpoint=False)  # all inside the piece
+    before = timeline.sample(ts)[0].copy()
+    timeline.replace(0, Piece(0.0, move.duration, lambda t: tuple(x + 1e-3 for x in move.sampler(0)(t))))
+    assert np.allclose(timeline.sample(ts)[0], before + 1e-3)
+    with pytest.raises(ValueError, match="cannot replace"):
+        timeline.replace(0, Piece(0.1, move.duration, move.sampler(0)))

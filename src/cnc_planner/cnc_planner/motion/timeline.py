@@ -154,6 +154,17 @@ class JointTimeline:
         self._starts.append(piece.start)
         self._coast.append((piece.end, end_position, end_velocity))
 
+    def replace(self, k: int, piece: Piece) -> None:
+        """Put ``piece`` in place of the k-th (same span: a correction superimposed on it)."""
+        old = self.pieces[k]
+        if (piece.start, piece.duration) != (old.start, old.duration):
+            raise ValueError(f"a piece at {piece.start} s for {piece.duration} s cannot replace one at "
+                             f"{old.start} s for {old.duration} s")
+        self.pieces[k] = piece
+        if k < len(self._ruckig):  # what sampling keeps of it, read again
+            self._ruckig[k] = type(piece.sample) is DofSampler
+            self._row_known[k] = False
+
     def add_hold(self, start: float, duration: float) -> None:
         """Stand still (a dwell) so that later moves of this joint start after it."""
         position = self.position_at(start)

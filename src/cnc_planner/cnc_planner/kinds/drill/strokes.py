@@ -126,7 +126,7 @@ class Strokes:
             for k, piece in enumerate(z.pieces):
                 lo, hi = max(piece.start, t0), min(piece.end, t1)
                 if hi > lo:
-                    z.pieces[k] = Piece(piece.start, piece.duration, _with_settling(piece, t0, t1, move))
+                    z.replace(k, Piece(piece.start, piece.duration, _with_settling(piece, t0, t1, move)))
                     covered += hi - lo
             if covered < t1 - t0 - 1e-9:
                 raise DrillError("drill", f"the Z command still settles {t1 - t0 - covered:.3f} s after the cycle")

@@ -119,7 +119,7 @@ class BridgeNode(LifecycleNode):
         trajectory_bytes.layout(self.joints, 2)
         self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS)
         self.clock_pub = self.create_publisher(Clock, topics.CLOCK, qos.CLOCK) if self.simulation else None
-        self.clock_msg = ClockBytes()
+        self.clock_msg = ClockBytes() if self.simulation else None
         self.inputs = [
             self.create_subscription(JointTrajectory, topics.JOINT_TRAJECTORY, self.on_trajectory, qos.JOINT_TRAJECTORY,
                                      raw=True),  # read in place (trajectory_bytes.py)

@@ -62,10 +62,10 @@ class XYMoveTable:
                 offset=np.array([bases[id(xy.correction)] + 3 * xy.correction_samples * dof
                                  if xy.correction is not None else -1 for xy, dof in moved], dtype=np.intp),
                 length=np.array([xy.correction_samples for xy, _ in moved], dtype=np.intp))
-            positions = [start[j]] + [xy.target[j] if j in xy.joints else np.nan for xy in self.moves]
-            held = np.array(positions, dtype=float)
-            index_of_last = np.maximum.accumulate(np.where(np.isnan(held), 0, np.arange(len(held))))
-            self.held[j] = held[index_of_last]
+            held = [start[j]]
+            for xy in self.moves:
+                held.append(xy.target[j] if j in xy.joints else held[-1])
+            self.held[j] = np.array(held, dtype=float)
 
 
 class XYCommand:

@@ -44,6 +44,7 @@ from typing import Any, Callable
 from . import topics
 from .bridge_lifecycle import BridgeLifecycle, CncClientError
 from .job import load_job
+from .liveliness import AliveWriters
 from .status import FINAL_STATES, Status, encode_cancel
 
 CONNECT_TIMEOUT_S = 10.0  # how long submit waits for a planner to listen on job_goal
@@ -87,7 +88,7 @@ class CncClient:
         self._others: dict[str, dict] = {}  # latest status of the other jobs heard (for follow)
         self._callbacks: list[Callable[[dict], None]] = []
         self._reachable: bool | None = None  # None until DDS has said anything
-        self._alive = 0  # planners (job_status writers) DDS holds alive
+        self._alive = AliveWriters()  # planners (job_status writers) DDS holds alive
         self._reachability_callbacks: list[Callable[[bool], None]] = []
         self._bridge = BridgeLifecycle(node, f"{self.namespace}/{topics.BRIDGE_NODE}", self._spin_once)
 
@@ -222,11 +223,7 @@ class CncClient:
         return self._bridge.state(timeout)
 
     def _on_liveliness(self, info: Any) -> None:
-        # Counted from the changes, not the status's alive_count: when the first "alive" came
-        # before rclpy armed the event (see _on_status), the count DDS reports later is one
-        # short (measured: -1 on the loss of the only planner).
-        self._alive = max(0, self._alive + info.alive_count_change)
-        self._set_reachable(self._alive > 0)
+        self._set_reachable(self._alive.change(info.alive_count_change) > 0)
 
     def _set_reachable(self, reachable: bool) -> None:
         if reachable != self._reachable:
@@ -240,9 +237,7 @@ class CncClient:
 
     def _on_status(self, msg: Any) -> None:
         # A status is word from the planner: reachable, even if DDS's first liveliness event
-        # was missed (rclpy arms the event after the subscription exists, and a planner
-        # matched in between is alive before anyone listens for it).
-        self._alive = max(self._alive, 1)
+        # was missed. It changes no count (see liveliness.py).
         self._set_reachable(True)
         try:
             doc = dataclasses.asdict(Status.decode(msg.data))

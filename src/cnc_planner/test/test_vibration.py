@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from cnc_msgs_py.machine import load_machine
-from cnc_planner.vibration.waveform import Vibration, VibrationError, VibrationFeed, check_vibration
+from cnc_planner.vibration.waveform import Vibration, VibrationError, VibrationFeed, check_vibration, waveform
 from cnc_analysis.aircut import analyze_aircut
 from cnc_servo_bridge.drive import DriveModel
 
@@ -239,3 +239,16 @@ def test_compensation_keeps_the_air_cut_where_the_lag_loses_it():
 def test_too_short_feed_is_rejected():
     with pytest.raises(VibrationError, match=r"^length: "):
         VibrationFeed(0.5 * F, F, Vibration(D=1.5, Q=1.2), rad_s(500), Z)
+
+
+def test_the_equal_strokes_waveform_is_the_general_one_at_r_one_half():
+    """r = 0.5 is computed as a plain cosine; it must be the r -> 0.5 limit of the general
+    waveform, derivatives included (one of the two strokes is slightly faster either side)."""
+    u = np.linspace(-2.0, 3.0, 20001)
+    for r in (0.5 - 1e-9, 0.5 + 1e-9):
+        for fast, general in zip(waveform(u), waveform(u, r)):
+            assert np.max(np.abs(fast - general)) < 1e-6 * np.max(np.abs(general))
+    w, w1, w2, w3 = waveform(u)
+    du = u[1] - u[0]
+    for f, df in ((w, w1), (w1, w2), (w2, w3)):  # each derivative is the slope of the one before
+        assert np.max(np.abs(np.gradient(f, du)[1:-1] - df[1:-1])) < 1e-3 * np.max(np.abs(df))

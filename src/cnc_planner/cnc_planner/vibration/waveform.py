@@ -148,8 +148,15 @@ def _require_positive(field: str, value: object) -> None:
 
 def waveform(u: np.ndarray, r: float = 0.5) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """w(u) in [0, 1] and its first three derivatives per cycle; r = retreat fraction of a
-    cycle. Unitless, so any axis or direction can scale it by its own amplitude."""
+    cycle. Unitless, so any axis or direction can scale it by its own amplitude.
+
+    At r = 0.5 (threads, and most vibrations) both strokes share one phase rate and w is
+    a plain cosine: computed as such, the same values as the general form's, bit for bit."""
     x = np.mod(u, 1.0)
+    if r == 0.5:
+        s, co = np.sin(TWO_PI * x), np.cos(TWO_PI * x)
+        pi = math.pi
+        return (1.0 - co) / 2.0, pi * s, 2 * pi**2 * co, -4 * pi**3 * s
     retreat = x >= 1.0 - r
     m_fwd, m_ret = 0.5 / (1.0 - r), 0.5 / r
     c = min(m_fwd, m_ret)  # phase rate at B and A, shared by both strokes

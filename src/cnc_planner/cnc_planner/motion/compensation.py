@@ -11,6 +11,7 @@ learning operator (faded out over a band below half the servo rate), give the co
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -52,9 +53,9 @@ def learn_correction(
     starts at feed, where the drive already lags). Returns the best correction seen.
     """
     n = p.shape[0]
-    # zero padding, at least n: no wrap-around (to a length the FFT is fast at)
-    padded = _fast_length(2 * n)
-    inverse = np.stack([_inverse_response(drive, padded, j, band) for j in range(p.shape[1])], axis=1)
+    # zero padding: no wrap-around
+    learn = _learning_operator(np.stack([_inverse_response(drive, 2 * n, j, band) for j in range(p.shape[1])],
+                                        axis=1), n)
     correction = np.zeros_like(p)
     best, best_error = correction, math.inf
     for _ in range(COMPENSATION_PASSES):
@@ -64,8 +65,7 @@ def learn_correction(
         judged = error if weight is None else error[weight >= weight.max()]  # where it acts in full
         if np.max(np.abs(judged)) < best_error:
             best, best_error = correction, np.max(np.abs(judged))
-        step = np.fft.irfft(np.fft.rfft(error, padded, axis=0) * inverse, padded, axis=0)[:n]
-        correction = correction + step
+        correction = correction + learn(error)
         correction[:fixed] = 0.0  # starts at rest; leads by the rest left before the motion
         if weight is not None:
             correction *= weight[:, None]
@@ -96,9 +96,22 @@ def learned_command(
     return settled(correction[keep_from:], motion_end, period, tolerance)
 
 
+def _learning_operator(inverse: np.ndarray, n: int) -> Callable[[np.ndarray], np.ndarray]:
+    """error (n, joints) -> the error zero-padded to 2n and circularly convolved with the
+    2n-periodic kernel whose rfft bins (n + 1, joints) are ``inverse``, first n samples.
+
+    Computed as the linear convolution with that kernel's lags -(n-1)..n-1, on a length the
+    FFT is fast at (_fast_length): the same values, without transforms of length 2n past the
+    first (numpy's FFT is slow on lengths with a large prime factor: thread_m16's
+    2n = 31010 = 2*5*7*443, a transform 14x as long as one of 31104)."""
+    kernel = np.fft.irfft(inverse, 2 * n, axis=0)
+    length = _fast_length(3 * n - 2)
+    response = np.fft.rfft(np.concatenate((kernel[n + 1:], kernel[:n])), length, axis=0)
+    return lambda error: np.fft.irfft(np.fft.rfft(error, length, axis=0) * response, length, axis=0)[n - 1:2 * n - 1]
+
+
 def _fast_length(n: int) -> int:
-    """The least 2^i 3^j 5^k >= n: numpy's FFT is slow on lengths with a large prime factor
-    (thread_m16's 2n = 31010 = 2*5*7*443 took 14x as long as 31104)."""
+    """The least 2^i 3^j 5^k >= n."""
     best, power5 = None, 1
     while power5 < 2 * n:
         power35 = power5

@@ -149,15 +149,17 @@ class ThreadCycle:
             # groove while x pulls out), or, where that would cut the flank, from rest
             # once x has cleared the stock
             starts = [(last.t_out, [float(q[0]) for q in last.stop.at_time(0.0)]), (t_go, [z_from, 0.0, 0.0])]
+            crossings = self._face_crossings(starts[0])
         else:
             t_begin, x_free = 0.0, self.t_lead
             starts = [(self.t_lead, [self.start[1], 0.0, 0.0])]
+            crossings = []
         phase = TWO_PI * start / spec.starts
         psi_room = TWO_PI * (spec.start_z / spec.pitch - JOIN_ROOM_REVS)  # the latest join before the face
         first = max(math.ceil(starts[0][0] / period - 1e-9) + 1, math.ceil(self.settled / period - 1e-9))
         for k, t_join, theta_ref, target in self._joins(cut, phase, psi_room, first,
                                                         first + math.ceil(MAX_AIR_S / period)):
-            tried = self._air_path(target, t_join, t_begin, starts, x_free)
+            tried = self._air_path(target, t_join, t_begin, starts, crossings, x_free)
             if tried is not None and self._smooth_join(cut, theta_ref, t_join, tried):
                 break
         else:
@@ -171,7 +173,7 @@ class ThreadCycle:
             for k_late in range(latest, k, -1):
                 t_late = k_late * period
                 late_target = helix(spec, cut, np.array([self.psi(theta_ref, t_late)])).transpose(1, 2, 0)[0]
-                late = self._air_path(late_target, t_late, t_begin, starts, x_free)
+                late = self._air_path(late_target, t_late, t_begin, starts, crossings, x_free)
                 if late is not None and self._smooth_join(cut, theta_ref, t_late, late):
                     t_join, tried = t_late, late
                     break
@@ -198,13 +200,13 @@ class ThreadCycle:
                 return False
         return True
 
-    def _air_path(self, target: np.ndarray, t_join: float, t_begin: float,
-                  starts: list[tuple[float, list[float]]], x_free: float) -> list[list[Stretch]] | None:
+    def _air_path(self, target: np.ndarray, t_join: float, t_begin: float, starts: list[tuple[float, list[float]]],
+                  crossings: list[tuple[float, list[float], Trajectory]], x_free: float) -> list[list[Stretch]] | None:
         """The first of _air_paths onto ``target`` at t_join that keeps the tool out of the
         stock from t_begin on, or None (the grid is built for the first path found: most
         candidate joins find none)."""
         grid = None
-        for tried in self._air_paths(target, t_join, starts, x_free):
+        for tried in self._air_paths(target, t_join, starts, crossings, x_free):
             if grid is None:
                 grid = np.arange(math.floor(t_begin / self.period), round(t_join / self.period)) * self.period
             if not self._cuts_stock(*(self._sample(track + extra, grid)[0] for track, extra in zip(self.tracks, tried))):
@@ -261,7 +263,7 @@ class ThreadCycle:
         return t_go, last.stop.at_time(last.stop.duration)[0][0]
 
     def _air_paths(self, target: np.ndarray, t_join: float, starts: list[tuple[float, list[float]]],
-                   x_free: float):
+                   crossings: list[tuple[float, list[float], Trajectory]], x_free: float):
         """The x plunge and z returns that reach the helix state ``target`` (rows x, z)
         exactly at t_join, best first: z from each of ``starts`` (time, state) that can,
         stretched to the time there is; then, from the last (at rest), z turning at rest
@@ -289,7 +291,7 @@ class ThreadCycle:
             yield [[plunge()], [(t_leave, _moving(t_leave, back))]]
             late = (t_go, z_state, fastest)
         if self.cuts:
-            for z in self._through_face(starts[0], z_target, t_join):
+            for z in self._through_face(starts[0][0], crossings, z_target, t_join):
                 if plunge() is None:
                     return
                 yield [[plunge()], z]
@@ -314,18 +316,28 @@ class ThreadCycle:
                 return
             yield [[plunge()], [(t_leave, _moving(t_leave, there)), (t_turn, _moving(t_turn, onto))]]
 
-    def _through_face(self, start: tuple[float, list[float]], z_target: list[float], t_join: float):
-        """z returns from the helix's exit that cross the face as soon as they can, at
-        THROUGH_SPEEDS outwards, and turn in front of it onto the join at t_join: the
-        longest z can spend clear of the face, for x to plunge on the deepest passes."""
+    def _face_crossings(self, start: tuple[float, list[float]]) -> list[tuple[float, list[float], Trajectory]]:
+        """(cycle time, z state, move there) at which z, from the helix's exit ``start``,
+        crosses the face as soon as it can at each of THROUGH_SPEEDS outwards: the same for
+        every candidate join of a pass."""
         spec = self.spec
         t_go, z_state = start
+        crossings = []
         for speed in THROUGH_SPEEDS:
             face = [spec.origin[1] - spec.direction * THROUGH_FRONT, -spec.direction * speed, 0.0]
             there = self._ramps.reach("z", z_state, face)
-            if there is None or t_go + there.duration >= t_join:
+            if there is not None:
+                crossings.append((t_go + there.duration, face, there))
+        return crossings
+
+    def _through_face(self, t_go: float, crossings: list[tuple[float, list[float], Trajectory]],
+                      z_target: list[float], t_join: float):
+        """z returns from the helix's exit (left at t_go) that cross the face as soon as they
+        can (``crossings``) and turn in front of it onto the join at t_join: the longest z can
+        spend clear of the face, for x to plunge on the deepest passes."""
+        for t_face, face, there in crossings:
+            if t_face >= t_join:
                 continue
-            t_face = t_go + there.duration
             onto = self._ramps.reach("z", face, z_target, duration=t_join - t_face)
             if onto is None or abs(onto.duration - (t_join - t_face)) > 1e-9:
                 continue

@@ -117,9 +117,9 @@ def planning_rows() -> tuple[list[tuple], list[str]]:
     notes.append(f"drill {SEGMENTED_HOLES} holes, segments: the first segment ({SEGMENT_HOLES} holes, what a goal "
                  f"waits for before it is accepted) planned in {first:.2f} s; the rest is planned while the job "
                  f"runs, {segmented / wall:.1f}x faster than the machine drills it.")
-    thread = load_job_file(JOBS / "thread_m12.yaml")
-    p, wall, cpu = best_plan(thread)
-    rows.append(("thread_m12.yaml", p.duration, wall, cpu, p.duration / wall))
+    for name in ("thread_m12.yaml", "thread_m16.yaml"):
+        p, wall, cpu = best_plan(load_job_file(JOBS / name))
+        rows.append((name, p.duration, wall, cpu, p.duration / wall))
     notes.append(f"each row: the fastest (wall) of {PLAN_RUNS} runs; cpu s: the process time of that run, x on "
                  f"cpu: plan s / cpu s (the {os.cpu_count()} CPUs are shared: wall above cpu is time the planner "
                  "waited for a CPU).")

@@ -112,14 +112,17 @@ def _learning_operator(inverse: np.ndarray, n: int) -> Callable[[np.ndarray], np
 
 def _fast_length(n: int) -> int:
     """The least 2^i 3^j 5^k >= n."""
-    best, power5 = None, 1
-    while power5 < 2 * n:
+    best = 1
+    while best < n:
+        best *= 2
+    power5 = 1
+    while power5 < best:
         power35 = power5
-        while power35 < 2 * n:
+        while power35 < best:
             length = power35
             while length < n:
                 length *= 2
-            best = length if best is None else min(best, length)
+            best = min(best, length)
             power35 *= 3
         power5 *= 5
     return best

@@ -53,7 +53,6 @@ def learn_correction(
     starts at feed, where the drive already lags). Returns the best correction seen.
     """
     n = p.shape[0]
-    # zero padding: no wrap-around
     learn = _learning_operator(np.stack([_inverse_response(drive, 2 * n, j, band) for j in range(p.shape[1])],
                                         axis=1), n)
     correction = np.zeros_like(p)

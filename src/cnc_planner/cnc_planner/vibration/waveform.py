@@ -150,8 +150,9 @@ def waveform(u: np.ndarray, r: float = 0.5) -> tuple[np.ndarray, np.ndarray, np.
     """w(u) in [0, 1] and its first three derivatives per cycle; r = retreat fraction of a
     cycle. Unitless, so any axis or direction can scale it by its own amplitude.
 
-    At r = 0.5 (threads, and most vibrations) both strokes share one phase rate and w is
-    a plain cosine: computed as such, the same values as the general form's, bit for bit."""
+    At r = 0.5 (threads, and every vibration given by D) both strokes share one phase rate
+    and w is a plain cosine: computed as such, the same values as the general form's, bit
+    for bit."""
     x = np.mod(u, 1.0)
     if r == 0.5:
         s, co = np.sin(TWO_PI * x), np.cos(TWO_PI * x)

@@ -18,13 +18,13 @@ from cnc_analysis.threads import (
     CHIP_LIMIT_REVS, CUT_TOLERANCE, cuts_against_envelope, longest_runs,
 )
 
+from cnc_planner.kinds.thread.helix import helix_peaks
 from cnc_planner.kinds.thread.ramps import z_to_speed
-from cnc_planner.kinds.thread.spec import TWO_PI, ThreadError, ThreadSpec, ThreadVibration, passes_of
+from cnc_planner.kinds.thread.spec import JOINTS, TWO_PI, ThreadError, ThreadSpec, ThreadVibration, passes_of
 from cnc_planner.vibration.waveform import waveform
 
 CHECK_POINTS_PER_REV = 720  # groove grid of the chip-breaking check
 Q_MAX = 20.0  # the job schema's bound: the search for a working Q stops there
-WAVE_POINTS = 4096  # phase samples for the waveform's derivative maxima
 WAVE_LIMIT_SHARE = 0.95  # of each axis limit for the vibration: the compensated command
 # leads the motion and runs a few per cent above it
 SUGGESTED_Q = 1.2  # a refused Q <= 1 is told this (or the least that breaks the chip, if more)
@@ -39,12 +39,6 @@ def _rpm(omega: float) -> float:
 
 def _mm(value: float) -> str:
     return f"{to_mm(value):.4g} mm"
-
-
-def _wave_maxima() -> np.ndarray:
-    """max |w'|, |w''|, |w'''| per cycle of the symmetric waveform."""
-    _, *derivatives = waveform(np.arange(WAVE_POINTS) / WAVE_POINTS)
-    return np.array([np.max(np.abs(d)) for d in derivatives])
 
 
 def _check_fields(spec: ThreadSpec) -> None:
@@ -275,15 +269,12 @@ def _check_follow(spec: ThreadSpec, machine: Machine) -> None:
     Velocity grows with the spindle speed, acceleration with its square, jerk with its cube,
     so each limit gives the spindle speed at which the waveform just touches it.
     """
-    omega, tan, maxima = spec.spindle_speed, math.tan(spec.infeed_angle), _wave_maxima()
+    omega = spec.spindle_speed
     worst = None
     for p in passes_of(spec):
         if p.spring:
             continue
-        rate = p.per_rev * omega / TWO_PI  # vibrations per second
-        radial = p.amplitude * maxima * rate ** np.arange(1, 4)  # depth: |v|, |a|, |j|
-        cone = np.array([spec.taper / 2 * spec.lead_speed, 0.0, 0.0])  # x follows the taper
-        for joint, need in (("x", radial + cone), ("z", tan * radial + np.array([spec.lead_speed, 0.0, 0.0]))):
+        for joint, need in zip(JOINTS, helix_peaks(spec, p)):
             axis = machine.axis(joint)
             for order, (quantity, limit, unit) in enumerate((
                 ("velocity", axis.max_velocity, "m/s"), ("acceleration", axis.max_acceleration, "m/s^2"),

@@ -10,6 +10,7 @@ bridge's feedback, not only the command, holds lead, depth and flank offset.
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -20,7 +21,7 @@ from ruckig import Trajectory
 from cnc_msgs_py.machine import Machine
 from cnc_servo_bridge.drive import DriveModel
 
-from cnc_planner.kinds.thread.helix import helix
+from cnc_planner.kinds.thread.helix import helix, helix_peaks
 from cnc_planner.kinds.thread.ramps import Ramps, z_to_speed
 from cnc_planner.kinds.thread.spec import JOINTS, TWO_PI, Pass, ThreadError, ThreadSpec, passes_of
 from cnc_planner.motion.compensation import COMPENSATION_TAIL, learned_command
@@ -39,6 +40,8 @@ THROUGH_FRONT = 0.05e-3  # m in front of the face where it crosses at that speed
 JOIN_JERK_STEP = 1.0  # of the axis jerk limit: the largest jerk step onto a helix
 JERK_PROBE_S = 1e-5  # s: the jerk either side of a join is the acceleration's slope over this
 JOIN_BATCH = 64  # candidate joins whose helix states are evaluated at once
+MISS_MARGIN = 1e-6  # s: a join is passed over untried only if z's fastest time misses it by more
+# (ruckig's rounding is far below)
 
 
 def _evaluate(trajectory: Trajectory, t: np.ndarray) -> np.ndarray:
@@ -157,8 +160,10 @@ class ThreadCycle:
         phase = TWO_PI * start / spec.starts
         psi_room = TWO_PI * (spec.start_z / spec.pitch - JOIN_ROOM_REVS)  # the latest join before the face
         first = max(math.ceil(starts[0][0] / period - 1e-9) + 1, math.ceil(self.settled / period - 1e-9))
-        for k, t_join, theta_ref, target in self._joins(cut, phase, psi_room, first,
-                                                        first + math.ceil(MAX_AIR_S / period)):
+        joins = self._joins(cut, phase, psi_room, first, first + math.ceil(MAX_AIR_S / period))
+        if np.all(helix_peaks(spec, cut)[1] <= self._ramps.limits("z")):
+            joins = self._past_out_of_reach(joins, starts)
+        for k, t_join, theta_ref, target in joins:
             tried = self._air_path(target, t_join, t_begin, starts, crossings, x_free)
             if tried is not None and self._smooth_join(cut, theta_ref, t_join, tried):
                 break
@@ -404,6 +409,38 @@ class ThreadCycle:
                 (self.theta0 + spec.spindle_speed * t_joins - psi_room - phase) / TWO_PI)
             targets = helix(spec, cut, self.psi(theta_refs, t_joins)).transpose(1, 2, 0)
             yield from zip(range(lo, lo + len(t_joins)), t_joins.tolist(), theta_refs.tolist(), targets)
+
+    def _past_out_of_reach(self, joins, starts: list[tuple[float, list[float]]]):
+        """``joins`` from the first of each helix revolution that z may reach in time from
+        one of ``starts``: the joins before it fail _air_paths' first test (z's fastest time)
+        from every start, and every path it tries from there takes at least that long.
+
+        Within one revolution z's slack (the time there is, less its fastest time) never
+        falls from a join to a later one, where the helix stays within the ramps' limits
+        (the caller's condition): reaching the earlier join and following the helix on to
+        the later one is a move within those limits, so ruckig's time-optimal move to the
+        later one is no longer than that. So a revolution whose last join is out of reach is
+        passed over whole, and in one that is not, the first join to try is a bisection away:
+        a few ruckig queries, not one or two per servo instant of air time."""
+        for _, revolution in itertools.groupby(joins, key=lambda join: join[2]):
+            revolution = list(revolution)
+            if self._out_of_reach(revolution[-1], starts):
+                continue
+            lo, hi = 0, len(revolution) - 1  # the first join in reach lies in [lo, hi]
+            while lo < hi:
+                mid = (lo + hi) // 2
+                lo, hi = (mid + 1, hi) if self._out_of_reach(revolution[mid], starts) else (lo, mid)
+            yield from revolution[lo:]
+
+    def _out_of_reach(self, join: tuple, starts: list[tuple[float, list[float]]]) -> bool:
+        """Whether z's fastest time from each of ``starts`` misses the join by MISS_MARGIN."""
+        _, t_join, _, target = join
+        z_target = target[1].tolist()  # as _air_paths asks: Ramps keeps the answers
+        for t_go, z_state in starts:
+            fastest = self._ramps.reach("z", z_state, z_target)
+            if fastest is None or fastest.duration <= t_join - t_go + MISS_MARGIN:
+                return False
+        return True
 
     def _exit(self, cut: Pass, theta_ref: float, t_join: float) -> tuple[float, Trajectory, Trajectory]:
         """Leave the helix at the first servo instant past end_z (the relief groove, where

@@ -26,12 +26,15 @@ off what the last returns left standing.
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 
 from cnc_planner.kinds.thread.spec import TWO_PI, Pass, ThreadSpec
 from cnc_planner.vibration.waveform import waveform
+
+WAVE_POINTS = 4096  # phase samples for the waveform's derivative maxima (the cosine's peaks among them)
 
 
 def helix(spec: ThreadSpec, cut: Pass, psi: np.ndarray) -> np.ndarray:
@@ -50,3 +53,21 @@ def helix(spec: ThreadSpec, cut: Pass, psi: np.ndarray) -> np.ndarray:
     out[1] = np.stack([cone + spec.radial * ddepth, s * (spec.lead_speed + tan * ddepth)], 1)
     out[2] = np.stack([spec.radial * dddepth, s * tan * dddepth], 1)
     return out
+
+
+def helix_peaks(spec: ThreadSpec, cut: Pass) -> np.ndarray:
+    """(2, 3): the largest |velocity|, |acceleration| and |jerk| of x and z on the helix of
+    a pass (the spindle turning at speed): the lead and the taper, plus the vibration along
+    the infeed line, whose derivatives grow with the vibrations per second, squared and cubed."""
+    rate = cut.per_rev * spec.spindle_speed / TWO_PI  # vibrations per second
+    radial = cut.amplitude * np.array(_wave_maxima()) * rate ** np.arange(1, 4)  # depth: |v|, |a|, |j|
+    cone = np.array([spec.taper / 2 * spec.lead_speed, 0.0, 0.0])  # x follows the taper
+    return np.stack([radial + cone, math.tan(spec.infeed_angle) * radial + np.array([spec.lead_speed, 0.0, 0.0])])
+
+
+@functools.cache
+def _wave_maxima() -> tuple[float, float, float]:
+    """max |w'|, |w''|, |w'''| per cycle of the symmetric waveform (sampled: its peaks lie
+    on quarter cycles, among the samples)."""
+    _, *derivatives = waveform(np.arange(WAVE_POINTS) / WAVE_POINTS)
+    return tuple(float(np.max(np.abs(d))) for d in derivatives)

@@ -33,6 +33,11 @@ class Ramps:
             inp.max_jerk = [RAMP_JERK_SHARE * limits.jerk]
         self._known: dict[tuple, Trajectory | None] = {}
 
+    def limits(self, joint: str) -> np.ndarray:
+        """The ramps' |velocity|, |acceleration| and |jerk| limits of ``joint``."""
+        inp = self._inputs[joint]
+        return np.array([inp.max_velocity[0], inp.max_acceleration[0], inp.max_jerk[0]])
+
     def reach(self, joint: str, start: Sequence[float], target: Sequence[float],
               duration: float | None = None) -> Trajectory | None:
         """The move of ``joint`` from state start to state target (p, v, a), lasting at

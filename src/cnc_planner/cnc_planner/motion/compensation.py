@@ -57,13 +57,15 @@ def learn_correction(
                                         axis=1), n)
     correction = np.zeros_like(p)
     best, best_error = correction, math.inf
-    for _ in range(COMPENSATION_PASSES):
+    for passes_left in range(COMPENSATION_PASSES - 1, -1, -1):
         dv, da = _derivatives(correction, drive.period)
         feedback = drive.simulate(p + correction, v + dv, a + da)[0]
         error = p - feedback
         judged = error if weight is None else error[weight >= weight.max()]  # where it acts in full
         if np.max(np.abs(judged)) < best_error:
             best, best_error = correction, np.max(np.abs(judged))
+        if not passes_left:  # a correction learned now would never be simulated, nor chosen
+            break
         correction = correction + learn(error)
         correction[:fixed] = 0.0  # starts at rest; leads by the rest left before the motion
         if weight is not None:
@@ -99,12 +101,14 @@ def _learning_operator(inverse: np.ndarray, n: int) -> Callable[[np.ndarray], np
     """error (n, joints) -> the error zero-padded to 2n and circularly convolved with the
     2n-periodic kernel whose rfft bins (n + 1, joints) are ``inverse``, first n samples.
 
-    Computed as the linear convolution with that kernel's lags -(n-1)..n-1, on a length the
-    FFT is fast at (_fast_length): the same values, without transforms of length 2n past the
-    first (numpy's FFT is slow on lengths with a large prime factor: thread_m16's
-    2n = 31010 = 2*5*7*443, a transform 14x as long as one of 31104)."""
+    Computed as the linear convolution with that kernel's lags -(n-1)..n-1, circularly on a
+    length the FFT is fast at (_fast_length) and at least 2n - 1: the wrap-around of the
+    (3n - 2)-long linear result then only reaches outputs outside the n kept ones. The same
+    values, without transforms of length 2n past the first (numpy's FFT is slow on lengths
+    with a large prime factor: thread_m16's 2n = 31010 = 2*5*7*443, a transform 14x as long
+    as one of 31104)."""
     kernel = np.fft.irfft(inverse, 2 * n, axis=0)
-    length = _fast_length(3 * n - 2)
+    length = _fast_length(2 * n - 1)
     response = np.fft.rfft(np.concatenate((kernel[n + 1:], kernel[:n])), length, axis=0)
     return lambda error: np.fft.irfft(np.fft.rfft(error, length, axis=0) * response, length, axis=0)[n - 1:2 * n - 1]
 

@@ -44,6 +44,25 @@ def test_recording_holds_every_topic_in_standard_types(move_run):
     assert goal["job_id"] == "move-mill3-demo"
 
 
+def test_the_goal_was_sent_once_the_planner_had_heard_the_bridge(move_run):
+    """cnc-run submits once the planner's heartbeat says it has heard the bridge (where the
+    axes stand, and its report): a goal sent before that waited for the bridge's next
+    report, 100 steps of idle sim time at the wall's pace, and was planned from a guessed
+    start, to be planned again when it started."""
+    said_ready, goal_at = [], None
+    with AnyReader([move_run / "bag"], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+        for conn, stamp, raw in reader.messages():
+            if conn.topic == "/cnc/job_goal":
+                goal_at = stamp
+                break
+            if conn.topic == "/diagnostics":
+                for status in reader.deserialize(raw, conn.msgtype).status:
+                    values = {kv.key: kv.value for kv in status.values}
+                    if status.name.startswith("cnc_planner") and values.get("ready") == "yes":
+                        said_ready.append(stamp)
+    assert goal_at is not None and said_ready, "no planner heartbeat said ready before the goal"
+
+
 def test_chunks_are_contiguous_and_follow_jtc_rules(move_run):
     chunks = read_bag(move_run / "bag")["/cnc/joint_trajectory"]
     period = 1_000_000
@@ -119,8 +138,8 @@ def test_a_second_run_in_the_same_domain_is_refused_before_it_sends_a_goal(tmp_p
         assert result.returncode != 0
         assert "already run at /cnc in ROS_DOMAIN_ID" in result.stderr
         assert "Traceback" not in result.stderr
-        heard = first.recorder.planner_heartbeats
-        first.spin_until(lambda: first.recorder.planner_heartbeats >= heard + 2, 30, "the planner went quiet")
+        heard = first.recorder.heard.planner_heartbeats
+        first.spin_until(lambda: first.recorder.heard.planner_heartbeats >= heard + 2, 30, "the planner went quiet")
         assert first.final_status("move-mill3-demo") is None  # the goal was never sent
 
 

@@ -15,6 +15,9 @@ BRIDGE_NODE = "cnc_servo_bridge"  # its lifecycle services: <namespace>/cnc_serv
 PID_KEY = "pid"  # in both nodes' diagnostics: the process, so a run can tell its own nodes from others
 DRIVES_KEY = "drives"  # in the bridge's diagnostics: DRIVES_ON (lifecycle active) or DRIVES_OFF
 DRIVES_ON, DRIVES_OFF = "enabled", "disabled"
+READY_KEY = "ready"  # in the planner's diagnostics: READY once it has heard the bridge (where the
+# axes stand, whether it is alarmed): a job submitted then starts as soon as it is planned
+READY, NOT_READY = "yes", "no"
 RECORDED_UNTIL = "recorded_until"  # recorder -> simulated bridge: stamp of the last joint_states
 # it has written (builtin_interfaces/Time), so the bridge's clock waits for a slow recorder
 

@@ -184,6 +184,11 @@ class Executive:
         if self.position is None and self.active is None and standing:
             self.position = positions
 
+    @property
+    def heard_bridge(self) -> bool:
+        """Whether a job could start now: where the axes stand and the bridge's state are known."""
+        return self.position is not None and self.bridge_alarm is not None
+
     def bridge_report(self, alarm: str) -> None:
         """The bridge's latest diagnostic: ``alarm`` is "" when it reports no error."""
         self.bridge_alarm = alarm

@@ -105,6 +105,7 @@ class PlannerNode(Node):
                 self.destroy_subscription(sub)  # rclpy's time source's: a callback per /clock message
         self.create_subscription(DiagnosticArray, topics.DIAGNOSTICS, self.on_diagnostics, qos.DIAGNOSTICS)
         self.latest_feedback_ns = 0
+        self.announced_ready = False
         self.wall = Clock(clock_type=ClockType.STEADY_TIME)
         self.last_feedback_wall = self.wall.now()
         # A heartbeat each second, and at once to each new listener (a recorder waits for it).
@@ -219,6 +220,15 @@ class PlannerNode(Node):
         # Not max(): a restarted bridge starts its clock again, and its time is the one that counts.
         self.latest_feedback_ns = msg.header.stamp.sec * NS + msg.header.stamp.nanosec
         self.admit_prepared()
+        self.announce_ready()
+
+    def announce_ready(self) -> None:
+        """A heartbeat at once when the planner first has heard the bridge (where the axes
+        stand, and its report): a session submits its job only then, which would otherwise
+        wait for the bridge's next report (100 steps of idle sim time at the wall's pace)."""
+        if not self.announced_ready and self.executive.heard_bridge:
+            self.announced_ready = True
+            self.heartbeat()
 
     def on_diagnostics(self, msg: DiagnosticArray) -> None:
         stamp = msg.header.stamp.sec * NS + msg.header.stamp.nanosec
@@ -233,6 +243,7 @@ class PlannerNode(Node):
             # the next job starts from feedback that comes later (the axes standing still).
             self.poll(bridge_ns=stamp)
             self.executive.bridge_report(status.message if status.level >= DiagnosticStatus.ERROR else "")
+            self.announce_ready()
             if status.level >= DiagnosticStatus.ERROR:
                 # The bridge stops the drives itself; the job ends here, unless the alarm
                 # is an old one that the running job's first setpoints are clearing. Drives
@@ -256,6 +267,8 @@ class PlannerNode(Node):
             level=DiagnosticStatus.OK, name="cnc_planner: executive", hardware_id=self.get_namespace(),
             message=f"running {active.job_id}" if active else "idle",
             values=[KeyValue(key=topics.PID_KEY, value=str(os.getpid())),
+                    KeyValue(key=topics.READY_KEY,
+                             value=topics.READY if self.executive.heard_bridge else topics.NOT_READY),
                     KeyValue(key="queued", value=str(len(self.executive.queue))),
                     KeyValue(key="machine", value=self.executive.machine.name)])
         msg = DiagnosticArray(status=[status])

@@ -28,6 +28,7 @@ from std_msgs.msg import String
 from cnc_msgs_py import qos, topics
 from cnc_msgs_py.discovery import DDS_VARIABLES, dds_environment
 from cnc_msgs_py.header_bytes import read_stamp
+from cnc_msgs_py.heard import NodesHeard
 from cnc_msgs_py.status import FINAL_STATES
 from cnc_msgs_py.units import NS
 from cnc_analysis.recording import RECORDED, BagWriter
@@ -89,10 +90,8 @@ class Recorder(Node):
         self.bag = bag
         self.statuses: list[dict] = []
         self.finals: dict[str, dict] = {}  # job_id -> its final status (looked up per message)
-        self.sim_ns = 0
-        self.feedback_ns = 0  # stamp of the last joint_states recorded
-        self.planner_heartbeats = 0  # planner diagnostics received (it is up and talking)
-        self.pids_heard: set[int] = set()  # the processes whose diagnostics name this namespace
+        self.sim_ns, self.feedback_ns = 0, 0  # the last /clock and joint_states recorded
+        self.heard = NodesHeard(self.get_namespace())  # the nodes' diagnostics
         self.goal_pub = self.create_publisher(String, topics.JOB_GOAL, qos.JOB_GOAL)
         # Backpressure: a simulated bridge does not run more than a bounded window ahead of this.
         self.ack_pub = self.create_publisher(Time, topics.RECORDED_UNTIL, qos.RECORDED_UNTIL)
@@ -116,10 +115,7 @@ class Recorder(Node):
                 if status["state"] in FINAL_STATES:
                     self.finals.setdefault(status["job_id"], status)
             elif topic == "/diagnostics":
-                msg = deserialize_message(data, message_class(RECORDED["/diagnostics"]))
-                self.planner_heartbeats += any(s.name.startswith("cnc_planner") for s in msg.status)
-                self.pids_heard.update(int(kv.value) for s in msg.status if s.hardware_id == self.get_namespace()
-                                       for kv in s.values if kv.key == topics.PID_KEY)
+                self.heard.hear(deserialize_message(data, message_class(RECORDED["/diagnostics"])).status)
             # A job's state and the nodes' liveness are what the session's conditions read.
             if (topic in ("job_status", "/diagnostics") or self.ack_due) and not self.wake.done():
                 self.wake.set_result(topic)
@@ -141,14 +137,18 @@ class Recorder(Node):
 
     def ready(self, own: set[int]) -> bool:
         """Planner listening for goals and talking, and bridge publishing feedback, both
-        heard from the processes ``own`` (not another run's nodes in the same domain).
+        heard from the processes ``own`` (not another run's nodes in the same domain), and
+        the planner having heard the bridge.
 
         The goal publisher seeing the planner's subscription is not enough: the planner's
         side of that match may come later, and a volatile reader drops what was sent before
         it matched (a goal lost on a loaded host: the planner stayed idle and cnc-run waited
-        out its timeout). The planner's first heartbeat, heard here (its pid is among
-        ``own``), shows both participants have discovered each other's endpoints."""
-        return own <= self.pids_heard and self.goal_pub.get_subscription_count() >= 2 and self.feedback_ns > 0
+        out its timeout). The planner's heartbeat saying ready (its pid among ``own``) shows
+        both participants have discovered each other's endpoints, and that it has heard the
+        bridge: a goal sent before waited for the bridge's next report, at idle sim time's
+        wall pace."""
+        return (own <= self.heard.pids and bool(own & self.heard.ready)
+                and self.goal_pub.get_subscription_count() >= 2 and self.feedback_ns > 0)
 
 
 class Session:
@@ -189,7 +189,7 @@ class Session:
     def __enter__(self) -> "Session":
         try:
             self.spin_until(self.ready, 30.0, "the planner and bridge did not come up")
-            if others := sorted(self.recorder.pids_heard - self.own_pids()):
+            if others := sorted(self.recorder.heard.pids - self.own_pids()):
                 # Two runs in one domain and namespace would take each other's goals.
                 raise RunError(f"other nodes (pid {', '.join(map(str, others))}) already run at "
                                f"{self.recorder.get_namespace()} in ROS_DOMAIN_ID {self.env.get('ROS_DOMAIN_ID', '0')} "
@@ -219,8 +219,8 @@ class Session:
         """Start a killed node again, with the same parameters, and wait until it talks."""
         self.procs[name] = subprocess.Popen(self.commands[name], env=self.env)
         if name == "planner":
-            seen = self.recorder.planner_heartbeats
-            self.spin_until(lambda: self.recorder.planner_heartbeats >= seen + 2, 30, "the planner did not come back")
+            heard, seen = self.recorder.heard, self.recorder.heard.planner_heartbeats
+            self.spin_until(lambda: heard.planner_heartbeats >= seen + 2, 30, "the planner did not come back")
 
     def submit(self, text: str) -> None:
         self.recorder.goal_pub.publish(String(data=text))

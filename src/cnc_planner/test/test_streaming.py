@@ -565,6 +565,9 @@ def test_no_job_starts_until_the_bridge_is_heard_healthy():
             sim.tick()
             sim.now += STEP_NS
         assert not sim.chunks and sim.ex.active is None
+        # what the planner's heartbeat says (a session submits once it is so): the axes'
+        # position is known from the first tick's feedback, the bridge's state from a report
+        assert sim.ex.heard_bridge == (report is not None)
     sim.ex.bridge_report("")  # the alarm was reset
     assert sim.run_job("waits").state == "succeeded"
 

@@ -23,6 +23,7 @@ import numpy as np
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.event_handler import PublisherEventCallbacks, QoSPublisherMatchedInfo
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
@@ -117,7 +118,9 @@ class BridgeNode(LifecycleNode):
         # form read in place made now too, not while the first job's first chunk waits.
         self.state_msg = FeedbackBytes(self.joints)
         trajectory_bytes.layout(self.joints, 2)
-        self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS)
+        # At once to each new listener, not only every 100 steps: a planner starts no job before it hears it.
+        self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS,
+                                              event_callbacks=PublisherEventCallbacks(matched=self.on_listener))
         self.clock_pub = self.create_publisher(Clock, topics.CLOCK, qos.CLOCK) if self.simulation else None
         self.clock_msg = ClockBytes() if self.simulation else None
         self.inputs = [
@@ -254,6 +257,10 @@ class BridgeNode(LifecycleNode):
             self.steps += 1
             self.t_ns += self.period_ns
         return len(taken)
+
+    def on_listener(self, info: QoSPublisherMatchedInfo) -> None:
+        if info.current_count_change > 0:
+            self.publish_diagnostics()
 
     def publish_feedback(self, feedback: Feedback) -> None:
         self.state_pub.publish(self.state_msg.fill(feedback.stamp_ns, feedback.positions, feedback.velocities))

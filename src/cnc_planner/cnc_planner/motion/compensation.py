@@ -53,8 +53,7 @@ def learn_correction(
     starts at feed, where the drive already lags). Returns the best correction seen.
     """
     n = p.shape[0]
-    learn = _learning_operator(np.stack([_inverse_response(drive, 2 * n, j, band) for j in range(p.shape[1])],
-                                        axis=1), n)
+    learn = _learning_operator(_inverse_response(drive, 2 * n, band), n)
     correction = np.zeros_like(p)
     best, best_error = correction, math.inf
     for passes_left in range(COMPENSATION_PASSES - 1, -1, -1):
@@ -137,11 +136,10 @@ def _derivatives(x: np.ndarray, period: float) -> tuple[np.ndarray, np.ndarray]:
     return (padded[2:] - padded[:-2]) / (2 * period), (padded[2:] - 2 * x + padded[:-2]) / period**2
 
 
-def _inverse_response(
-    drive: DriveModel, n: int, joint: int = 0, band: tuple[float, float] = INVERSE_BAND
-) -> np.ndarray:
-    """Frequency response (np.fft.rfft bins of an n-sample sequence) from a feedback error
-    to the command correction that removes it, for one joint's linear drive part.
+def _inverse_response(drive: DriveModel, n: int, band: tuple[float, float] = INVERSE_BAND) -> np.ndarray:
+    """Frequency response (np.fft.rfft bins of an n-sample sequence, a column per joint)
+    from a feedback error to the command correction that removes it, for each joint's
+    linear drive part.
 
     Per servo period the drive computes v_cmd = ff*v_ref + af*lag*a_ref + kp*(p_ref - y) from
     the encoder reading y taken before the step, lags it by exp(-T/lag) and integrates the
@@ -150,15 +148,23 @@ def _inverse_response(
     G = (1-decay)*T*(1+z) / (2*(z-decay)*(z-1)) and K = ff*D1 + af*lag*D2 + kp, and the
     inverse is (1/G + kp)/K. G vanishes at half the servo rate (trapezoidal rule), so the
     inverse is faded out over `band`; the vibration lives far below it.
+
+    z, 1/z and the fade are the same for every joint, and only the bins the fade keeps are
+    computed; a division by the servo period is the multiplication by its reciprocal that
+    numpy's complex division by a real number is, bit for bit.
     """
-    kp, ff, af, lag, decay = (float(np.ravel(x)[joint]) for x in (
-        drive.kp, drive.velocity_ff, drive.accel_ff, drive.lag, drive.decay))
     period = drive.period
     f = np.fft.rfftfreq(n)  # cycles per servo period
-    z = np.exp(2j * math.pi * f)
     lo, hi = band
     fade = np.sin(0.5 * math.pi * np.clip((hi - f) / (hi - lo), 0.0, 1.0)) ** 2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv_g = 2 * (z - decay) * (z - 1) / ((1 - decay) * period * (1 + z))
-        k = ff * (z - 1 / z) / (2 * period) + af * lag * (z - 2 + 1 / z) / period**2 + kp
-        return np.where(fade > 0, (inv_g + kp) / k * fade, 0.0)
+    kept = fade > 0
+    z = np.exp(2j * math.pi * f[kept])
+    z_inv = 1 / z
+    out = np.zeros((f.size, np.ravel(drive.kp).size), dtype=complex)
+    for j, (kp, ff, af, lag, decay) in enumerate(zip(*(np.ravel(x).tolist() for x in (
+            drive.kp, drive.velocity_ff, drive.accel_ff, drive.lag, drive.decay)))):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv_g = 2 * (z - decay) * (z - 1) / ((1 - decay) * period * (1 + z))
+            k = ff * (z - z_inv) * (1 / (2 * period)) + af * lag * (z - 2 + z_inv) * (1 / period**2) + kp
+            out[kept, j] = (inv_g + kp) / k * fade[kept]
+    return out

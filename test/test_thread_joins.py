@@ -1,10 +1,12 @@
 """The thread cycle's search for each pass's join onto its helix (issue 27): passing over
-the helix revolutions that z cannot reach in time, and bisecting the first one it can,
-finds the joins that trying every servo instant finds, on drawn lathes and threads.
+the helix revolutions that z cannot reach in time, bisecting the first one it can, and
+searching x's latest turn back from the previous join's, finds the joins that trying every
+servo instant and bisecting every turn finds, on drawn lathes and threads.
 
-The premise (z's slack never falls within a revolution) holds where the helix stays within
-the ramps' limits; the cycle only bisects there, so the joins and the whole plan must be
-the exhaustive search's, bit for bit.
+The premises (z's slack never falls within a revolution, x's never rises the later it
+turns back) hold where the motion followed stays within the ramps' limits; the cycle only
+bisects joins there, so the joins and the whole plan must be the exhaustive search's, bit
+for bit.
 """
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 
 from cnc_msgs_py.job import parse_job
 from cnc_msgs_py.machine import Machine, load_machine
+from cnc_planner.kinds.thread import cycle
 from cnc_planner.kinds.thread.cycle import ThreadCycle
 from cnc_planner.kinds.thread.planning import plan_thread
 from cnc_planner.kinds.thread.spec import ThreadError, ThreadSpec
@@ -52,8 +55,8 @@ def threads(draw) -> ThreadSpec:
     return ThreadSpec.from_job(parse_job(job))
 
 
-def test_bisected_joins_are_the_exhaustive_searchs_on_drawn_lathes_and_threads():
-    out_of_reach = ThreadCycle._out_of_reach
+def test_the_joins_found_are_the_exhaustive_searchs_on_drawn_lathes_and_threads():
+    out_of_reach, latest = ThreadCycle._out_of_reach, cycle._latest
     passed_over = []  # joins the bisection ruled out, over every example
 
     def counting(self, join, starts):
@@ -68,7 +71,8 @@ def test_bisected_joins_are_the_exhaustive_searchs_on_drawn_lathes_and_threads()
     def run(spec: ThreadSpec, machine: Machine) -> None:
         with mock.patch.object(ThreadCycle, "_out_of_reach", counting):
             bisected = planned(spec, machine)
-        with mock.patch.object(ThreadCycle, "_past_out_of_reach", lambda self, joins, starts: joins):
+        with (mock.patch.object(ThreadCycle, "_past_out_of_reach", lambda self, joins, starts: joins),
+              mock.patch.object(cycle, "_latest", lambda holds, lo, hi, hint: latest(holds, lo, hi, None))):
             exhaustive = planned(spec, machine)
         if isinstance(exhaustive, str):
             assert bisected == exhaustive

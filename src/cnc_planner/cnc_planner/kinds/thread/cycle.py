@@ -53,6 +53,28 @@ Stretch = tuple[float, Callable[[np.ndarray], np.ndarray]]  # (cycle time it beg
 # cycle times -> (3, len(t)): one axis's position, velocity and acceleration)
 
 
+def _latest(holds: Callable[[int], bool], lo: int, hi: int, hint: int | None) -> int:
+    """The latest k in [lo, hi) at which ``holds``, given that it holds at lo and, once it
+    fails, fails for every later k: searched outwards from ``hint`` (doubling the step),
+    then by bisection, so that a hint next to the answer costs two or three calls."""
+    if hint is not None and lo < hint < hi:
+        step = 1
+        if holds(hint):
+            lo = hint
+            while lo + step < hi and holds(lo + step):
+                lo, step = lo + step, 2 * step
+            hi = min(hi, lo + step)
+        else:
+            hi = hint
+            while hi - step > lo and not holds(hi - step):
+                hi, step = hi - step, 2 * step
+            lo = max(lo, hi - step)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        lo, hi = (mid, hi) if holds(mid) else (lo, mid)
+    return lo
+
+
 def _held(position: float) -> Stretch:
     return lambda t: np.stack([np.full(t.size, position), np.zeros(t.size), np.zeros(t.size)])
 
@@ -158,6 +180,7 @@ class ThreadCycle:
             starts = [(self.t_lead, [self.start[1], 0.0, 0.0])]
             crossings = []
         phase = TWO_PI * start / spec.starts
+        self._turn_hint = None  # where x last turned back to plunge onto this pass's helix
         psi_room = TWO_PI * (spec.start_z / spec.pitch - JOIN_ROOM_REVS)  # the latest join before the face
         first = max(math.ceil(starts[0][0] / period - 1e-9) + 1, math.ceil(self.settled / period - 1e-9))
         joins = self._joins(cut, phase, psi_room, first, first + math.ceil(MAX_AIR_S / period))
@@ -371,14 +394,12 @@ class ThreadCycle:
         def arrives(k: int) -> bool:  # turning back after k periods still lands by t_join
             return fastest(k) <= (n - k) * period + 1e-12
 
-        lo, hi = 1, n
-        if hi < lo or not arrives(lo):
+        if n < 1 or not arrives(1):
             return None
-        while hi - lo > 1:  # the latest turn that still arrives
-            mid = (lo + hi) // 2
-            lo, hi = (mid, hi) if arrives(mid) else (lo, mid)
-        t_turn = last.t_out + lo * period
-        state = [float(q[0]) for q in last.retract.at_time(min(lo * period, last.retract.duration))]
+        # the latest turn that still arrives; the previous join's lies a step or two away
+        turn = self._turn_hint = _latest(arrives, 1, n, self._turn_hint)
+        t_turn = last.t_out + turn * period
+        state = [float(q[0]) for q in last.retract.at_time(min(turn * period, last.retract.duration))]
         plunge = self._ramps.reach("x", state, x_target, duration=t_join - t_turn)
         if plunge is None or abs(plunge.duration - (t_join - t_turn)) > 1e-9:
             return None

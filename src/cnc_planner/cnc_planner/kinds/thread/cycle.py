@@ -141,6 +141,8 @@ class ThreadCycle:
         self.spec, self.machine, self.period, self.theta0 = spec, machine, period, theta0
         self.settled = settled
         self._ramps = Ramps(machine)
+        self._turn_hint: int | None = None  # servo periods after a pass's exit that x last turned
+        # back after to plunge onto the next helix (_plunge's search starts there)
         self.t_lead = round(LEAD_TIME / period) * period
         self.x_clear = spec.origin[0] + spec.clear_radius
         self.x_air = spec.origin[0] + spec.air_radius
@@ -180,7 +182,6 @@ class ThreadCycle:
             starts = [(self.t_lead, [self.start[1], 0.0, 0.0])]
             crossings = []
         phase = TWO_PI * start / spec.starts
-        self._turn_hint = None  # where x last turned back to plunge onto this pass's helix
         psi_room = TWO_PI * (spec.start_z / spec.pitch - JOIN_ROOM_REVS)  # the latest join before the face
         first = max(math.ceil(starts[0][0] / period - 1e-9) + 1, math.ceil(self.settled / period - 1e-9))
         joins = self._joins(cut, phase, psi_room, first, first + math.ceil(MAX_AIR_S / period))

@@ -37,21 +37,6 @@ ROS_USAGE = """ROS arguments (after --ros-args, as with `ros2 run`):
 DDS: ROS_DOMAIN_ID, ROS_AUTOMATIC_DISCOVERY_RANGE, ROS_DISCOVERY_SERVER as usual."""
 
 
-def ignore(_msg: object) -> None:
-    """The callback of a subscription read with take_latest (never called: not spun)."""
-
-
-def take_latest(subscription):
-    """The newest message waiting in a subscription (None if none): a reader that needs
-    only the latest of a fast topic takes it when it needs it, at no Python callback per
-    message."""
-    latest = None
-    with subscription.handle:
-        while (taken := subscription.handle.take_message(subscription.msg_type, subscription.raw)) is not None:
-            latest = taken[0]
-    return latest
-
-
 def usage(prog: str, description: str, package: str, parameters: dict[str, Param]) -> argparse.ArgumentParser:
     """The executable's own arguments (--help, --version) and, in its help, ROS's and the parameters."""
     rows = []

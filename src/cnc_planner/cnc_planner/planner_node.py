@@ -21,7 +21,7 @@ from trajectory_msgs.msg import JointTrajectory
 
 from cnc_msgs_py import qos, topics, trajectory_bytes
 from cnc_msgs_py.machine import load_machine
-from cnc_msgs_py.node import ignore, run_node, take_latest
+from cnc_msgs_py.node import run_node
 from cnc_msgs_py.parameters import Param, declare, value
 from cnc_msgs_py.status import Status, decode_cancel
 from cnc_msgs_py.units import NS
@@ -29,7 +29,6 @@ from cnc_msgs_py.units import NS
 from cnc_planner.executive import Executive, Output, Settings
 from cnc_planner.goal_ledger import GoalLedger
 
-ADMIT_PERIOD = 0.002  # s of wall time between looks for a prepared goal while goals are planned
 
 PARAMETERS = {
     "machine": Param("mill3", "machine description config/machines/<name>.yaml (or a path), the one "
@@ -50,6 +49,19 @@ PARAMETERS = {
     "feedback_timeout": Param(2.0, "wall time without joint_states before a running job aborts", "s",
                               (0.1, 60.0)),
 }
+
+
+def ignore(_msg: object) -> None:
+    """The callback of a subscription read with take_latest (never called: not spun)."""
+
+
+def take_latest(subscription):
+    """The newest message waiting in a subscription (None if none)."""
+    latest = None
+    with subscription.handle:
+        while (taken := subscription.handle.take_message(subscription.msg_type, subscription.raw)) is not None:
+            latest = taken[0]
+    return latest
 
 
 class PlannerNode(Node):
@@ -106,10 +118,6 @@ class PlannerNode(Node):
         self.preparing: deque[tuple[bytes, Future]] = deque()  # (goal key, its preparation)
         self.ledger = GoalLedger()  # a client's resent goal is answered, not run twice
         self.create_timer(value(self, "feedback_period"), self.poll, clock=self.wall)
-        # While goals are prepared, each is admitted (and started) as soon as it is planned,
-        # not at the next read of the feedback: a timer that rests otherwise.
-        self.admission = self.create_timer(ADMIT_PERIOD, self.admit_when_prepared, clock=self.wall)
-        self.admission.cancel()
         self.get_logger().info(f"planning for machine '{machine.name}' joints {self.joints}")
 
     def on_parameters_set(self, parameters: list[Parameter]) -> None:
@@ -190,13 +198,6 @@ class PlannerNode(Node):
         # The running job's setpoints go further ahead before planning starts taking the GIL.
         self.advance(planning=True)
         self.preparing.append((key, self.intake.submit(self.executive.prepare, msg.data)))
-        self.admission.reset()
-
-    def admit_when_prepared(self) -> None:
-        if self.preparing and self.preparing[0][1].done():
-            self.poll()
-        if not self.preparing:
-            self.admission.cancel()
 
     def admit_prepared(self) -> None:
         while self.preparing and self.preparing[0][1].done():

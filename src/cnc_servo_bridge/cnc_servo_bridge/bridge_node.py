@@ -259,7 +259,7 @@ class BridgeNode(LifecycleNode):
         return len(taken)
 
     def on_listener(self, info: QoSPublisherMatchedInfo) -> None:
-        if info.current_count_change > 0:
+        if info.current_count_change > 0 and self.loop is not None:  # not an event queued before release
             self.publish_diagnostics()
 
     def publish_feedback(self, feedback: Feedback) -> None:

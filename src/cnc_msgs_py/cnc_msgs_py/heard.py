@@ -30,7 +30,9 @@ class NodesHeard:
             if status.hardware_id != self.namespace:
                 continue
             values = {kv.key: kv.value for kv in status.values}
-            if topics.PID_KEY in values:
-                self.pids.add(int(values[topics.PID_KEY]))
-                if values.get(topics.READY_KEY) == topics.READY:
-                    self.ready.add(int(values[topics.PID_KEY]))
+            if topics.PID_KEY not in values:
+                continue
+            pid = int(values[topics.PID_KEY])
+            self.pids.add(pid)
+            if values.get(topics.READY_KEY) == topics.READY:
+                self.ready.add(pid)

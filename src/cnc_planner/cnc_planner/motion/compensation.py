@@ -61,8 +61,9 @@ def learn_correction(
         feedback = drive.simulate(p + correction, v + dv, a + da)[0]
         error = p - feedback
         judged = error if weight is None else error[weight >= weight.max()]  # where it acts in full
-        if np.max(np.abs(judged)) < best_error:
-            best, best_error = correction, np.max(np.abs(judged))
+        worst = np.max(np.abs(judged))
+        if worst < best_error:
+            best, best_error = correction, worst
         if not passes_left:  # a correction learned now would never be simulated, nor chosen
             break
         correction = correction + learn(error)

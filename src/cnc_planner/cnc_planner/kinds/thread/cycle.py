@@ -40,6 +40,7 @@ THROUGH_FRONT = 0.05e-3  # m in front of the face where it crosses at that speed
 JOIN_JERK_STEP = 1.0  # of the axis jerk limit: the largest jerk step onto a helix
 JERK_PROBE_S = 1e-5  # s: the jerk either side of a join is the acceleration's slope over this
 JOIN_BATCH = 64  # candidate joins whose helix states are evaluated at once
+GRID_ROUNDING = 1e-9  # s: an instant this close to a servo instant is read as it
 MISS_MARGIN = 1e-6  # s: a join is passed over untried only if z's fastest time misses it by more
 # (ruckig's rounding is far below)
 
@@ -154,7 +155,8 @@ class ThreadCycle:
                 self._add(cut, start)
         self.end = np.array([self.x_clear, spec.origin[1] + spec.start_z])
         self.duration = math.ceil(self._finish(self.cuts[-1]) / period - 1e-9) * period
-        self._correction: np.ndarray | None = None
+        self._correction: np.ndarray | None = None  # (3, servo instants, 2): learned, on the grid
+        self._command: np.ndarray | None = None  # the same: the motion plus the correction
         self._cache: tuple[tuple[int, float, float], np.ndarray] | None = None
         if drive is not None:
             self._compensate(drive)
@@ -493,27 +495,39 @@ class ThreadCycle:
         return np.stack([self._sample(track, t) for track in self.tracks], 2)
 
     def _compensate(self, drive: DriveModel) -> None:
+        """The command on the servo grid (the ideal motion plus the learned correction),
+        kept whole: the plan is checked and streamed on that grid."""
         n = math.ceil((self.duration + COMPENSATION_TAIL) / self.period) + 1
-        p, v, a = self.ideal(np.arange(n) * self.period)
+        motion = self.ideal(np.arange(n) * self.period)
         # settled within a fraction of an encoder count: below that it is quantisation the
         # learning picked up from the simulated encoder, not lag
         tolerance = SETTLED_COUNTS * float(np.min(drive.resolution))
-        self._correction = learned_command(drive, p, v, a, round(LEAD_TIME / self.period) // 2,
+        self._correction = learned_command(drive, *motion, round(LEAD_TIME / self.period) // 2,
                                            round(self.duration / self.period), self.period, COMPENSATION_BAND,
                                            tolerance)
+        self._command = motion[:, :self._correction.shape[1]] + self._correction
         self.duration = (self._correction.shape[1] - 1) * self.period
 
     def sample_all(self, t: np.ndarray) -> np.ndarray:
-        """(3, len(t), 2): the command at cycle times t (cached: x and z ask alike)."""
+        """(3, len(t), 2): the command at cycle times t (cached: x and z ask alike); read
+        from the compensated command where t lies on its servo grid (within GRID_ROUNDING),
+        else the motion there plus the correction interpolated."""
         key = (t.size, float(t[0]), float(t[-1])) if t.size else (0, 0.0, 0.0)
         if self._cache is not None and self._cache[0] == key:
             return self._cache[1]
-        out = self.ideal(t)
-        if self._correction is not None:
-            grid = np.arange(self._correction.shape[1]) * self.period
-            for k in range(3):
-                for j in range(2):
-                    out[k, :, j] += np.interp(t, grid, self._correction[k, :, j], right=0.0)
+        if self._command is None:
+            out = self.ideal(t)
+        else:
+            k = np.rint(t / self.period)
+            if t.size and 0.0 <= k[0] and k[-1] < self._command.shape[1] and np.all(
+                    np.abs(t - k * self.period) <= GRID_ROUNDING):
+                out = self._command[:, k.astype(np.intp)]
+            else:
+                out = self.ideal(t)
+                grid = np.arange(self._correction.shape[1]) * self.period
+                for i in range(3):
+                    for j in range(2):
+                        out[i, :, j] += np.interp(t, grid, self._correction[i, :, j], right=0.0)
         self._cache = (key, out)
         return out
 

@@ -178,6 +178,12 @@ def waveform(u: np.ndarray, r: float = 0.5) -> tuple[np.ndarray, np.ndarray, np.
     return w, w1, w2, w3
 
 
+def lift(u: np.ndarray) -> np.ndarray:
+    """waveform(u)[0] at r = 0.5 alone, bit for bit: the cosine without its derivatives,
+    for checks that only ask where the tool is (the thread's chip check)."""
+    return (1.0 - np.cos(TWO_PI * np.mod(u, 1.0))) / 2.0
+
+
 def straight_waveform(u: np.ndarray, r: float, corner: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The method's drawing: w rises at one speed from B (u = 0) to A (u = 1 - r, w = 1) and
     falls at another back to B, each reversal a jerk-limited blend ``corner`` of a cycle

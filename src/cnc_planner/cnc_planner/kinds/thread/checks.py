@@ -21,7 +21,7 @@ from cnc_analysis.threads import (
 from cnc_planner.kinds.thread.helix import helix_peaks
 from cnc_planner.kinds.thread.ramps import z_to_speed
 from cnc_planner.kinds.thread.spec import JOINTS, TWO_PI, ThreadError, ThreadSpec, ThreadVibration, passes_of
-from cnc_planner.vibration.waveform import waveform
+from cnc_planner.vibration.waveform import lift
 
 CHECK_POINTS_PER_REV = 720  # groove grid of the chip-breaking check
 Q_MAX = 20.0  # the job schema's bound: the search for a working Q stops there
@@ -177,7 +177,7 @@ def _chip_revs(spec: ThreadSpec, vib: ThreadVibration) -> np.ndarray:
     face, end = s * -spec.start_z / spec.pitch, s * (spec.end_z - spec.start_z) / spec.pitch
     psi = np.linspace(face, end, math.ceil((end - face) * CHECK_POINTS_PER_REV) + 1)
     depth = np.array([
-        p.depth - p.amplitude * (1.0 - waveform(p.per_rev * psi + p.phase)[0]) for p in passes
+        p.depth - p.amplitude * (1.0 - lift(p.per_rev * psi + p.phase)) for p in passes
     ])
     cutting = cuts_against_envelope(depth) > CUT_TOLERANCE
     return longest_runs(cutting) / CHECK_POINTS_PER_REV

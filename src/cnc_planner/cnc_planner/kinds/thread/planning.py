@@ -36,15 +36,17 @@ def thread_origin(kin: Kinematics) -> tuple[float, float]:
     """
     reason = "a thread's axis must be the spindle axis: turn the setup about Z only, its origin on that axis"
     quarters = [(float(np.cos(a)), float(np.sin(a))) for a in np.arange(4) * (np.pi / 2)]
+    probes = [(c, s, r, z) for c, s in quarters for r, z in ((0.0, 0.0), (THREAD_PROBE, 0.0), (0.0, THREAD_PROBE))]
     try:  # a tool axis tilted out of the plane normal to the spindle, or a lathe tip off y = 0
-        probes = [(kin.to_axes({"x": r * c, "y": r * s, "z": z}, [c, s, 0.0]), r, z)
-                  for c, s in quarters for r, z in ((0.0, 0.0), (THREAD_PROBE, 0.0), (0.0, THREAD_PROBE))]
+        axes = kin.ik_many(np.array([(r * c, r * s, z) for c, s, r, z in probes]),
+                           np.array([(c, s, 0.0) for c, s, _, _ in probes]), check=False)
     except JobError as err:
         raise JobError("setup", reason) from err
-    x0, z0 = probes[0][0]["x"], probes[0][0]["z"]  # the face, at angle 0
-    if any(abs(axes[j] - {"x": x0 + r, "z": z0 + z}.get(j, 0.0)) > THREAD_AXIS_TOL
-           for axes, r, z in probes for j in axes):
-        raise JobError("setup", reason)
+    x0, z0 = float(axes["x"][0]), float(axes["z"][0])  # the face, at angle 0
+    for i, (_, _, r, z) in enumerate(probes):
+        expected = {"x": x0 + r, "z": z0 + z}
+        if any(abs(float(axes[j][i]) - expected.get(j, 0.0)) > THREAD_AXIS_TOL for j in axes if j != SPINDLE):
+            raise JobError("setup", reason)
     return x0, z0
 
 

@@ -7,6 +7,7 @@ do (the least Q, the highest spindle speed).
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import replace
 
@@ -176,9 +177,12 @@ def _chip_revs(spec: ThreadSpec, vib: ThreadVibration) -> np.ndarray:
     s = spec.direction
     face, end = s * -spec.start_z / spec.pitch, s * (spec.end_z - spec.start_z) / spec.pitch
     psi = np.linspace(face, end, math.ceil((end - face) * CHECK_POINTS_PER_REV) + 1)
-    depth = np.array([
-        p.depth - p.amplitude * (1.0 - lift(p.per_rev * psi + p.phase)) for p in passes
-    ])
+
+    @functools.cache
+    def lifted(per_rev: float, phase: float) -> np.ndarray:  # passes share their rate and phase
+        return lift(per_rev * psi + phase)
+
+    depth = np.array([p.depth - p.amplitude * (1.0 - lifted(p.per_rev, p.phase)) for p in passes])
     cutting = cuts_against_envelope(depth) > CUT_TOLERANCE
     return longest_runs(cutting) / CHECK_POINTS_PER_REV
 

@@ -10,6 +10,7 @@ for bit.
 """
 from __future__ import annotations
 
+import itertools
 from unittest import mock
 
 import numpy as np
@@ -71,7 +72,8 @@ def test_the_joins_found_are_the_exhaustive_searchs_on_drawn_lathes_and_threads(
     def run(spec: ThreadSpec, machine: Machine) -> None:
         with mock.patch.object(ThreadCycle, "_out_of_reach", counting):
             bisected = planned(spec, machine)
-        with (mock.patch.object(ThreadCycle, "_past_out_of_reach", lambda self, joins, starts: joins),
+        with (mock.patch.object(ThreadCycle, "_past_out_of_reach",
+                                lambda self, revolutions, starts: itertools.chain.from_iterable(revolutions)),
               mock.patch.object(cycle, "_latest", lambda holds, lo, hi, hint: latest(holds, lo, hi, None))):
             exhaustive = planned(spec, machine)
         if isinstance(exhaustive, str):

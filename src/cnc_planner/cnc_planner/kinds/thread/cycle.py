@@ -39,7 +39,6 @@ THROUGH_SPEEDS = (0.03, 0.02, 0.01)  # m/s: speeds at which a z return may cross
 THROUGH_FRONT = 0.05e-3  # m in front of the face where it crosses at that speed
 JOIN_JERK_STEP = 1.0  # of the axis jerk limit: the largest jerk step onto a helix
 JERK_PROBE_S = 1e-5  # s: the jerk either side of a join is the acceleration's slope over this
-JOIN_BATCH = 64  # candidate joins whose helix states are evaluated at once
 GRID_ROUNDING = 1e-9  # s: an instant this close to a servo instant is read as it
 MISS_MARGIN = 1e-6  # s: a join is passed over untried only if z's fastest time misses it by more
 # (ruckig's rounding is far below)
@@ -186,9 +185,11 @@ class ThreadCycle:
         phase = TWO_PI * start / spec.starts
         psi_room = TWO_PI * (spec.start_z / spec.pitch - JOIN_ROOM_REVS)  # the latest join before the face
         first = max(math.ceil(starts[0][0] / period - 1e-9) + 1, math.ceil(self.settled / period - 1e-9))
-        joins = self._joins(cut, phase, psi_room, first, first + math.ceil(MAX_AIR_S / period))
+        revolutions = self._joins(cut, phase, psi_room, first, first + math.ceil(MAX_AIR_S / period))
         if np.all(helix_peaks(spec, cut)[1] <= self._ramps.limits("z")):
-            joins = self._past_out_of_reach(joins, starts)
+            joins = self._past_out_of_reach(revolutions, starts)
+        else:
+            joins = itertools.chain.from_iterable(revolutions)
         for k, t_join, theta_ref, target in joins:
             tried = self._air_path(target, t_join, t_begin, starts, crossings, x_free)
             if tried is not None and self._smooth_join(cut, theta_ref, t_join, tried):
@@ -422,20 +423,22 @@ class ThreadCycle:
         return on_helix
 
     def _joins(self, cut: Pass, phase: float, psi_room: float, first: int, stop: int):
-        """Candidate joins k in [first, stop) in order: (k, t_join, theta_ref of the latest
-        helix revolution joined before psi_room, the helix state there (rows x, z; columns
-        p, v, a)), evaluated JOIN_BATCH at a time: most are rejected on ruckig's fastest
-        time alone."""
+        """Candidate joins k in [first, stop) in order, a helix revolution at a time (the
+        latest revolution joined before psi_room: one theta_ref): lists of (k, t_join,
+        theta_ref, the helix state there (rows x, z; columns p, v, a)), each revolution's
+        helix evaluated at once: most are rejected on ruckig's fastest time alone, whole
+        revolutions at a time."""
         spec = self.spec
-        for lo in range(first, stop, JOIN_BATCH):
-            t_joins = np.arange(lo, min(stop, lo + JOIN_BATCH)) * self.period
-            theta_refs = phase + TWO_PI * np.ceil(
-                (self.theta0 + spec.spindle_speed * t_joins - psi_room - phase) / TWO_PI)
-            targets = helix(spec, cut, self.psi(theta_refs, t_joins)).transpose(1, 2, 0)
-            yield from zip(range(lo, lo + len(t_joins)), t_joins.tolist(), theta_refs.tolist(), targets)
+        ks = np.arange(first, stop)
+        t_joins = ks * self.period
+        theta_refs = phase + TWO_PI * np.ceil((self.theta0 + spec.spindle_speed * t_joins - psi_room - phase) / TWO_PI)
+        for lo, hi in itertools.pairwise([0, *(np.flatnonzero(np.diff(theta_refs)) + 1).tolist(), ks.size]):
+            theta_ref = float(theta_refs[lo])
+            targets = helix(spec, cut, self.psi(theta_ref, t_joins[lo:hi])).transpose(1, 2, 0)
+            yield list(zip(ks[lo:hi].tolist(), t_joins[lo:hi].tolist(), itertools.repeat(theta_ref), targets))
 
-    def _past_out_of_reach(self, joins, starts: list[tuple[float, list[float]]]):
-        """``joins`` from the first of each helix revolution that z may reach in time from
+    def _past_out_of_reach(self, revolutions, starts: list[tuple[float, list[float]]]):
+        """The joins of ``revolutions`` from the first of each that z may reach in time from
         one of ``starts``: the joins before it fail _air_paths' first test (z's fastest time)
         from every start, and every path it tries from there takes at least that long.
 
@@ -446,8 +449,7 @@ class ThreadCycle:
         later one is no longer than that. So a revolution whose last join is out of reach is
         passed over whole, and in one that is not, the first join to try is a bisection away:
         a few ruckig queries, not one or two per servo instant of air time."""
-        for _, revolution in itertools.groupby(joins, key=lambda join: join[2]):
-            revolution = list(revolution)
+        for revolution in revolutions:
             if self._out_of_reach(revolution[-1], starts):
                 continue
             lo, hi = 0, len(revolution) - 1  # the first join in reach lies in [lo, hi]

@@ -413,10 +413,10 @@ class ThreadCycle:
         """Cycle times -> helix of the pass joined at theta_ref; x and z ask for the same
         instants one after the other, so the last answer is kept (for exactly those instants:
         grids that differ by rounding only must not share it)."""
-        last = [np.empty(0), helix(self.spec, cut, np.empty(0))]  # instants, helix there
+        last: list[np.ndarray | None] = [None, None]  # instants, helix there
 
         def on_helix(t: np.ndarray) -> np.ndarray:
-            if not np.array_equal(last[0], t):
+            if last[0] is None or not np.array_equal(last[0], t):
                 last[:] = t.copy(), helix(self.spec, cut, self.psi(theta_ref, t))
             return last[1]
 

@@ -241,7 +241,7 @@ class ThreadCycle:
         for tried in self._air_paths(target, t_join, starts, crossings, x_free):
             if grid is None:
                 grid = np.arange(math.floor(t_begin / self.period), round(t_join / self.period)) * self.period
-            if not self._cuts_stock(*(self._sample(track + extra, grid)[0] for track, extra in zip(self.tracks, tried))):
+            if not self._cuts_stock(*(track + extra for track, extra in zip(self.tracks, tried)), grid):
                 return tried
         return None
 
@@ -260,8 +260,8 @@ class ThreadCycle:
             down = self._plunge([self.x_clear, 0.0, 0.0], t_home, last.t_out)
             straight = (last.t_out, _moving(last.t_out, home))
             grid = np.arange(math.floor(last.t_out / period), round(t_home / period) + 1) * period
-            if down is not None and not self._cuts_stock(self._sample(self.tracks[0] + [down], grid)[0],
-                                                         self._sample(self.tracks[1][:-1] + [straight], grid)[0]):
+            if down is not None and not self._cuts_stock(self.tracks[0] + [down], self.tracks[1][:-1] + [straight],
+                                                         grid):
                 self.tracks[0].append(down)
                 self.tracks[1][-1] = straight
                 last.t_done = last.t_out + last.stop.duration
@@ -276,13 +276,17 @@ class ThreadCycle:
         last.t_done = min(last.t_end, t_go)  # over once z heads back, x maybe still on its way out
         return t_done
 
-    def _cuts_stock(self, x: np.ndarray, z: np.ndarray) -> bool:
-        """Whether the tip at axis positions x, z is ever inside the stock over the thread."""
+    def _cuts_stock(self, x: list[Stretch], z: list[Stretch], t: np.ndarray) -> bool:
+        """Whether the tip, on the tracks x and z at instants t, is ever inside the stock over
+        the thread (x is sampled only where z is over it: a first pass's approach never is)."""
         spec, s = self.spec, self.spec.direction
         x0, z0 = spec.origin
-        depth = spec.radial * (x - x0 - spec.surface(z - z0))
-        over_stock = (s * (z - z0) >= 0.0) & (s * (z - z0) <= s * spec.end_z)
-        return bool(np.any(over_stock & (depth > 0.0)))
+        z_at = self._sample(z, t)[0]
+        over_stock = (s * (z_at - z0) >= 0.0) & (s * (z_at - z0) <= s * spec.end_z)
+        if not over_stock.any():
+            return False
+        depth = spec.radial * (self._sample(x, t[over_stock])[0] - x0 - spec.surface(z_at[over_stock] - z0))
+        return bool(np.any(depth > 0.0))
 
     def _at_rest_clear(self, last: CutTiming) -> tuple[float, float]:
         """(servo instant, z) at which z has stopped past the pass ``last`` and x has

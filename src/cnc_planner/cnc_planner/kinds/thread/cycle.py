@@ -202,9 +202,9 @@ class ThreadCycle:
         if not self.cuts:  # from rest, a later join onto the same revolution meets the face as
             # soon, and the axes stay at rest longer: the latest that can be reached smoothly
             latest = math.floor((theta_ref + psi_room - self.theta0) / spec.spindle_speed / period + 1e-9)
-            for k_late in range(latest, k, -1):
-                t_late = k_late * period
-                late_target = helix(spec, cut, np.array([self.psi(theta_ref, t_late)])).transpose(1, 2, 0)[0]
+            t_lates = np.arange(latest, k, -1) * period
+            late_targets = helix(spec, cut, self.psi(theta_ref, t_lates)).transpose(1, 2, 0)
+            for t_late, late_target in zip(t_lates.tolist(), late_targets):
                 late = self._air_path(late_target, t_late, t_begin, starts, crossings, x_free)
                 if late is not None and self._smooth_join(cut, theta_ref, t_late, late):
                     t_join, tried = t_late, late
@@ -226,7 +226,8 @@ class ThreadCycle:
         before = np.array([t_join - 2 * eps, t_join - eps])
         after = helix(self.spec, cut, self.psi(theta_ref, np.array([t_join, t_join + eps])))[2]  # (2 instants, x z)
         for j, axis in enumerate(JOINTS):
-            a = self._sample(self.tracks[j] + tried[j], before)[2]
+            begin, last = tried[j][-1]  # the stretch onto the join holds both instants, if it began by then
+            a = (last(before) if begin <= before[0] else self._sample(self.tracks[j] + tried[j], before))[2]
             step = (after[1, j] - after[0, j]) / eps - (a[1] - a[0]) / eps
             if abs(step) > JOIN_JERK_STEP * self.machine.axis(axis).max_jerk:
                 return False

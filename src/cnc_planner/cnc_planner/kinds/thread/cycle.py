@@ -528,7 +528,9 @@ class ThreadCycle:
             k = np.rint(t / self.period)
             if t.size and 0.0 <= k[0] and k[-1] < self._command.shape[1] and np.all(
                     np.abs(t - k * self.period) <= GRID_ROUNDING):
-                out = self._command[:, k.astype(np.intp)]
+                first, last = int(k[0]), int(k[-1])  # consecutive instants (a plan's grid): a view
+                out = (self._command[:, first:last + 1] if last - first == t.size - 1 and np.all(np.diff(k) == 1.0)
+                       else self._command[:, k.astype(np.intp)])
             else:
                 out = self.ideal(t)
                 grid = np.arange(self._correction.shape[1]) * self.period

@@ -211,6 +211,24 @@ def test_compensation_keeps_the_vibration_where_the_lag_loses_it():
     assert following["chips_broken"] and following["full_depth"] and following["helix_residual_mm"] < 0.01
 
 
+def test_the_command_reads_alike_on_and_off_the_servo_grid(vibrating):
+    """The compensated cycle is kept on the servo grid and read there (within rounding of
+    an instant, the same values); between two instants it is the motion there plus the
+    correction interpolated, so it lies within a_max T^2 / 8 of the two instants' mean (the
+    correction is interpolated linearly; the motion bends by at most its acceleration)."""
+    result, info = vibrating["plan"], vibrating["info"]
+    t = vibrating["t"]
+    cycle = (t >= info[0]["t_start"]) & (t <= info[-1]["t_end"])
+    columns = [result.joints.index(j) for j in ("x", "z")]
+    on_grid = vibrating["command"][0][cycle][:, columns]
+    assert np.array_equal(result.sample(t[cycle] + 1e-12)[0][:, columns], on_grid)
+    mid = result.sample((t[cycle][:-1] + t[cycle][1:]) / 2)[0][:, columns]
+    bound = np.array([LATHE.axis(j).max_acceleration for j in ("x", "z")]) * T**2 / 8 + 1e-12
+    off = np.abs(mid - (on_grid[:-1] + on_grid[1:]) / 2)
+    assert np.all(off <= bound), (off.max(axis=0), bound)
+    assert np.max(off) > 0.0  # read off the grid, not the grid's neighbour
+
+
 def test_internal_two_start_thread():
     spec = ThreadSpec(start_z=3e-3, end_z=-5e-3, major_radius=8e-3, pitch=2e-3, depth=0.6e-3,
                       spindle_speed=rpm(500), passes=3, starts=2, internal=True,

@@ -185,7 +185,7 @@ class ThreadCycle:
         phase = TWO_PI * start / spec.starts
         psi_room = TWO_PI * (spec.start_z / spec.pitch - JOIN_ROOM_REVS)  # the latest join before the face
         first = max(math.ceil(starts[0][0] / period - 1e-9) + 1, math.ceil(self.settled / period - 1e-9))
-        revolutions = self._joins(cut, phase, psi_room, first, first + math.ceil(MAX_AIR_S / period))
+        revolutions = self._revolutions(cut, phase, psi_room, first, first + math.ceil(MAX_AIR_S / period))
         if np.all(helix_peaks(spec, cut)[1] <= self._ramps.limits("z")):
             joins = self._past_out_of_reach(revolutions, starts)
         else:
@@ -427,7 +427,7 @@ class ThreadCycle:
 
         return on_helix
 
-    def _joins(self, cut: Pass, phase: float, psi_room: float, first: int, stop: int):
+    def _revolutions(self, cut: Pass, phase: float, psi_room: float, first: int, stop: int):
         """Candidate joins k in [first, stop) in order, a helix revolution at a time (the
         latest revolution joined before psi_room: one theta_ref): lists of (k, t_join,
         theta_ref, the helix state there (rows x, z; columns p, v, a)), each revolution's

@@ -528,8 +528,8 @@ class ThreadCycle:
             k = np.rint(t / self.period)
             if t.size and 0.0 <= k[0] and k[-1] < self._command.shape[1] and np.all(
                     np.abs(t - k * self.period) <= GRID_ROUNDING):
-                first, last = int(k[0]), int(k[-1])  # consecutive instants (a plan's grid): a view
-                out = (self._command[:, first:last + 1] if last - first == t.size - 1 and np.all(np.diff(k) == 1.0)
+                first = int(k[0])  # consecutive instants (a plan's grid): a view
+                out = (self._command[:, first:first + t.size] if np.all(np.diff(k) == 1.0)
                        else self._command[:, k.astype(np.intp)])
             else:
                 out = self.ideal(t)

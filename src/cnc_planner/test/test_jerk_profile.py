@@ -68,6 +68,34 @@ def test_one_call_over_many_pieces_equals_each_sampler_bit_for_bit():
     assert not plan[:, :, 1].any()
 
 
+def test_held_pieces_equal_sampling_at_the_end_after_it_bit_for_bit():
+    """held=True (the thread cycle's stretches: an axis at rest in its end state after a
+    move) gives each dof's sampler values at np.minimum(local time, duration) exactly; past
+    the end of a move that ends moving it is not the unheld continuation."""
+    rows, starts, lo, hi, expected, ts = [], [], [], [], [], []
+    n, moving = 0, 0
+    for k, trajectory in enumerate(random_trajectories(200, seed=13)):
+        sampler = TrajectorySampler(trajectory)
+        start = 0.29 * k + 1e-3 / 7
+        t = start + np.linspace(-0.01, 1.5 * trajectory.duration + 0.01, 40)
+        values = sampler.sample(np.minimum(t - start, sampler.duration))
+        for dof, row in enumerate(sampler.rows):
+            ts.append(t)
+            rows.append(row)
+            starts.append(start)
+            lo.append(n)
+            hi.append(n + len(t))
+            expected.append(values[:, :, dof])
+            n += len(t)
+            moving += abs(trajectory.at_time(sampler.duration)[1][dof]) > 1e-6
+    held, unheld = np.zeros((3, n)), np.zeros((3, n))
+    args = np.array(rows), np.array(starts), np.array(lo), np.array(hi), np.concatenate(ts)
+    sample_spans(*args, held, held=True)
+    sample_spans(*args, unheld)
+    assert np.array_equal(held, np.concatenate(expected, axis=1))
+    assert moving > 20 and not np.array_equal(held, unheld)
+
+
 def test_bad_spans_are_refused_naming_the_array():
     sampler = TrajectorySampler(next(random_trajectories(1, seed=3)))
     out = [np.zeros(4) for _ in range(3)]

@@ -57,9 +57,10 @@ static PyObject *spans_py(PyObject *self, PyObject *args)
 {
     PyObject *obj[ARRAYS];
     Py_buffer view[ARRAYS];
+    int held = 0;  /* each piece holds its end state past its end, instead of its final acceleration */
     (void)self;
-    if (!PyArg_ParseTuple(args, "OOOOOOOO:spans", &obj[TABLE], &obj[STARTS], &obj[LO], &obj[HI], &obj[TS],
-                          &obj[P], &obj[V], &obj[A]))
+    if (!PyArg_ParseTuple(args, "OOOOOOOO|p:spans", &obj[TABLE], &obj[STARTS], &obj[LO], &obj[HI], &obj[TS],
+                          &obj[P], &obj[V], &obj[A], &held))
         return NULL;
     int taken = take_all(obj, view, ARRAYS, "ddlldddd", P, NAMES);
     int ok = taken == ARRAYS;
@@ -92,9 +93,12 @@ static PyObject *spans_py(PyObject *self, PyObject *args)
         for (Py_ssize_t k = 0; k < pieces; k++) {
             const double *row = (const double *)((char *)view[TABLE].buf + k * view[TABLE].strides[0]);
             const double start = AT(view[STARTS], double, k);
-            for (Py_ssize_t i = AT(view[LO], long, k); i < AT(view[HI], long, k); i++)
-                evaluate(row, AT(view[TS], double, i) - start, &AT(view[P], double, i), &AT(view[V], double, i),
-                         &AT(view[A], double, i));
+            for (Py_ssize_t i = AT(view[LO], long, k); i < AT(view[HI], long, k); i++) {
+                double t = AT(view[TS], double, i) - start;
+                if (held && t > row[DURATION])  /* as np.minimum(t, duration) */
+                    t = row[DURATION];
+                evaluate(row, t, &AT(view[P], double, i), &AT(view[V], double, i), &AT(view[A], double, i));
+            }
         }
         Py_END_ALLOW_THREADS
     }
@@ -196,8 +200,9 @@ static PyObject *corrections_py(PyObject *self, PyObject *args)
 
 static PyMethodDef METHODS[] = {
     {"spans", spans_py, METH_VARARGS,
-     "spans(rows, starts, lo, hi, ts, p, v, a): piece k (rows[k], from plan time starts[k]) at the\n"
-     "instants ts[lo[k]:hi[k]], written to p, v and a at the same indices."},
+     "spans(rows, starts, lo, hi, ts, p, v, a, held=False): piece k (rows[k], from plan time starts[k]) at\n"
+     "the instants ts[lo[k]:hi[k]], written to p, v and a at the same indices; held: each piece's end\n"
+     "state past its end."},
     {"corrections", corrections_py, METH_VARARGS,
      "corrections(table, offset, length, starts, lo, hi, period, ts, p, v, a): part k, in order, adds\n"
      "np.interp(ts[i] - starts[k], servo grid of length[k] samples, its p, v or a samples, which lie\n"

@@ -55,15 +55,19 @@ class TrajectorySampler:
         return out
 
 
+
 def sample_spans(rows: np.ndarray, starts: np.ndarray, lo: np.ndarray, hi: np.ndarray, ts: np.ndarray,
-                 out: tuple[np.ndarray, np.ndarray, np.ndarray] | list[np.ndarray]) -> None:
+                 out: tuple[np.ndarray, np.ndarray, np.ndarray] | list[np.ndarray] | np.ndarray,
+                 held: bool = False) -> None:
     """Many pieces of ruckig dofs at once: piece k (its phases rows[k], a row of
     TrajectorySampler.rows) starting at plan time starts[k], at the instants
     ts[lo[k]:hi[k]], written to out[q][lo[k]:hi[k]]; the values its TrajectorySampler
     gives, computed where they are written (compiled: _sample_kernel.c), so that a
-    timeline of tens of thousands of short pieces costs no temporaries per instant."""
+    timeline of tens of thousands of short pieces costs no temporaries per instant.
+    ``held``: past its end a piece holds its end state (as sampling it at
+    np.minimum(t, duration)) instead of going on at its final acceleration."""
     _spans(np.ascontiguousarray(rows, dtype=float).reshape(-1, ROW_LENGTH), np.asarray(starts, dtype=float),
-           np.asarray(lo, dtype=np.intp), np.asarray(hi, dtype=np.intp), np.asarray(ts, dtype=float), *out)
+           np.asarray(lo, dtype=np.intp), np.asarray(hi, dtype=np.intp), np.asarray(ts, dtype=float), *out, held)
 
 
 def add_corrections(table: np.ndarray, offset: np.ndarray, length: np.ndarray, starts: np.ndarray, lo: np.ndarray,

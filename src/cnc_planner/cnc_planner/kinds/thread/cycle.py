@@ -25,7 +25,7 @@ from cnc_planner.kinds.thread.helix import helix, helix_peaks
 from cnc_planner.kinds.thread.ramps import Ramps, z_to_speed
 from cnc_planner.kinds.thread.spec import JOINTS, TWO_PI, Pass, ThreadError, ThreadSpec, passes_of
 from cnc_planner.motion.compensation import COMPENSATION_TAIL, learned_command
-from cnc_planner.motion.jerk_profile import TrajectorySampler
+from cnc_planner.motion.jerk_profile import TrajectorySampler, sample_spans
 
 COMPENSATION_BAND = (0.05, 0.12)  # of the servo rate (50..120 Hz at 1 ms): above the vibration,
 # below the encoder quantisation noise a wider band would feed into the command's jerk
@@ -79,9 +79,47 @@ def _held(position: float) -> Stretch:
     return lambda t: np.stack([np.full(t.size, position), np.zeros(t.size), np.zeros(t.size)])
 
 
+class _Moving:
+    """One axis along a ruckig move from cycle time ``start``, at rest in its end state after
+    it: a stretch that _sample evaluates with its neighbours in one kernel call."""
+
+    __slots__ = ("start", "row")
+
+    def __init__(self, start: float, trajectory: Trajectory) -> None:
+        self.start = start
+        self.row = TrajectorySampler(trajectory).rows[0]  # read once: a stretch is sampled many times
+
+    def __call__(self, t: np.ndarray) -> np.ndarray:
+        out = np.empty((3, t.size))
+        sample_spans(self.row, [self.start], [0], [t.size], t, out, held=True)
+        return out
+
+
 def _moving(start: float, trajectory: Trajectory) -> Stretch:
-    sampler = TrajectorySampler(trajectory)  # read once: a stretch is sampled many times
-    return lambda t: sampler.sample(np.minimum(t - start, sampler.duration))[:, :, 0]
+    return (start, _Moving(start, trajectory))
+
+
+class _Revolution:
+    """The candidate joins onto one helix revolution, in order, as (k, t_join, theta_ref, the
+    helix state there (rows x, z; columns p, v, a)): each made when it is asked for (most
+    of a revolution is passed over unread)."""
+
+    __slots__ = ("ks", "t_joins", "theta_ref", "targets")
+
+    def __init__(self, ks: np.ndarray, t_joins: np.ndarray, theta_ref: float, targets: np.ndarray) -> None:
+        self.ks, self.t_joins, self.theta_ref, self.targets = ks, t_joins, theta_ref, targets
+
+    def __len__(self) -> int:
+        return self.ks.size
+
+    def __getitem__(self, i: int) -> tuple[int, float, float, np.ndarray]:
+        return int(self.ks[i]), float(self.t_joins[i]), self.theta_ref, self.targets[i]
+
+    def joins(self, lo: int = 0):
+        """The joins from the lo-th on."""
+        return (self[i] for i in range(lo, len(self)))
+
+    __iter__ = joins
 
 
 @dataclass
@@ -213,8 +251,8 @@ class ThreadCycle:
         for j in range(2):
             self.tracks[j] += tried[j] + [(t_join, lambda t, j=j: on_helix(t)[:, :, j])]
         t_out, retract, stop = self._exit(cut, theta_ref, t_join)
-        self.tracks[0].append((t_out, _moving(t_out, retract)))
-        self.tracks[1].append((t_out, _moving(t_out, stop)))
+        self.tracks[0].append(_moving(t_out, retract))
+        self.tracks[1].append(_moving(t_out, stop))
         self.cuts.append(CutTiming(cut, start, theta_ref, t_begin, t_join, t_out, retract, stop))
 
     def _smooth_join(self, cut: Pass, theta_ref: float, t_join: float, tried: list[list[Stretch]]) -> bool:
@@ -259,7 +297,7 @@ class ThreadCycle:
         if home is not None:
             t_home = last.t_out + math.ceil(home.duration / period - 1e-9) * period
             down = self._plunge([self.x_clear, 0.0, 0.0], t_home, last.t_out)
-            straight = (last.t_out, _moving(last.t_out, home))
+            straight = _moving(last.t_out, home)
             grid = np.arange(math.floor(last.t_out / period), round(t_home / period) + 1) * period
             if down is not None and not self._cuts_stock(self.tracks[0] + [down], self.tracks[1][:-1] + [straight],
                                                          grid):
@@ -269,10 +307,10 @@ class ThreadCycle:
                 return t_home
         last.retract = self._ramps.reach("x", [float(q[0]) for q in last.retract.at_time(0.0)],
                                          [self.x_clear, 0.0, 0.0])
-        self.tracks[0][-1] = (last.t_out, _moving(last.t_out, last.retract))
+        self.tracks[0][-1] = _moving(last.t_out, last.retract)
         t_go, z_from = self._at_rest_clear(last)
         home = self._ramps.reach("z", [z_from, 0.0, 0.0], end)
-        self.tracks[1].append((t_go, _moving(t_go, home)))
+        self.tracks[1].append(_moving(t_go, home))
         t_done = max(last.t_end, t_go + home.duration)
         last.t_done = min(last.t_end, t_go)  # over once z heads back, x maybe still on its way out
         return t_done
@@ -325,7 +363,7 @@ class ThreadCycle:
                 continue
             if plunge() is None:
                 return
-            yield [[plunge()], [(t_leave, _moving(t_leave, back))]]
+            yield [[plunge()], [_moving(t_leave, back)]]
             late = (t_go, z_state, fastest)
         if self.cuts:
             for z in self._through_face(starts[0][0], crossings, z_target, t_join):
@@ -351,7 +389,7 @@ class ThreadCycle:
                 continue
             if plunge() is None:
                 return
-            yield [[plunge()], [(t_leave, _moving(t_leave, there)), (t_turn, _moving(t_turn, onto))]]
+            yield [[plunge()], [_moving(t_leave, there), _moving(t_turn, onto)]]
 
     def _face_crossings(self, start: tuple[float, list[float]]) -> list[tuple[float, list[float], Trajectory]]:
         """(cycle time, z state, move there) at which z, from the helix's exit ``start``,
@@ -378,7 +416,7 @@ class ThreadCycle:
             onto = self._ramps.reach("z", face, z_target, duration=t_join - t_face)
             if onto is None or abs(onto.duration - (t_join - t_face)) > 1e-9:
                 continue
-            yield [(t_go, _moving(t_go, there)), (t_face, _moving(t_face, onto))]
+            yield [_moving(t_go, there), _moving(t_face, onto)]
 
     def _plunge(self, x_target: list[float], t_join: float, x_free: float) -> Stretch | None:
         """x onto the helix state x_target at t_join. The first pass plunges from rest at
@@ -390,7 +428,7 @@ class ThreadCycle:
             plunge = self._ramps.reach("x", [self.start[0], 0.0, 0.0], x_target)
             if plunge is None or t_join - plunge.duration < x_free - 1e-12:
                 return None
-            return (t_join - plunge.duration, _moving(t_join - plunge.duration, plunge))
+            return _moving(t_join - plunge.duration, plunge)
         last = self.cuts[-1]
 
         def fastest(k: int) -> float:
@@ -400,19 +438,22 @@ class ThreadCycle:
 
         n = round((t_join - last.t_out) / period)  # periods from the exit to the join
 
+        @functools.cache
         def arrives(k: int) -> bool:  # turning back after k periods still lands by t_join
             return fastest(k) <= (n - k) * period + 1e-12
 
-        if n < 1 or not arrives(1):
-            return None
         # the latest turn that still arrives; the previous join's lies a step or two away
-        turn = self._turn_hint = _latest(arrives, 1, n, self._turn_hint)
+        # (where it arrives, so does every earlier turn)
+        hint = self._turn_hint
+        if n < 1 or not (hint is not None and 1 < hint < n and arrives(hint)) and not arrives(1):
+            return None
+        turn = self._turn_hint = _latest(arrives, 1, n, hint)
         t_turn = last.t_out + turn * period
         state = [float(q[0]) for q in last.retract.at_time(min(turn * period, last.retract.duration))]
         plunge = self._ramps.reach("x", state, x_target, duration=t_join - t_turn)
         if plunge is None or abs(plunge.duration - (t_join - t_turn)) > 1e-9:
             return None
-        return (t_turn, _moving(t_turn, plunge))
+        return _moving(t_turn, plunge)
 
     def _on_helix(self, cut: Pass, theta_ref: float) -> Callable[[np.ndarray], np.ndarray]:
         """Cycle times -> helix of the pass joined at theta_ref; x and z ask for the same
@@ -429,9 +470,8 @@ class ThreadCycle:
 
     def _revolutions(self, cut: Pass, phase: float, psi_room: float, first: int, stop: int):
         """Candidate joins k in [first, stop) in order, a helix revolution at a time (the
-        latest revolution joined before psi_room: one theta_ref): lists of (k, t_join,
-        theta_ref, the helix state there (rows x, z; columns p, v, a)), each revolution's
-        helix evaluated at once: most are rejected on ruckig's fastest time alone, whole
+        latest revolution joined before psi_room: one theta_ref), each revolution's helix
+        evaluated at once: most are rejected on ruckig's fastest time alone, whole
         revolutions at a time."""
         spec = self.spec
         ks = np.arange(first, stop)
@@ -440,7 +480,7 @@ class ThreadCycle:
         for lo, hi in itertools.pairwise([0, *(np.flatnonzero(np.diff(theta_refs)) + 1).tolist(), ks.size]):
             theta_ref = float(theta_refs[lo])
             targets = helix(spec, cut, self.psi(theta_ref, t_joins[lo:hi])).transpose(1, 2, 0)
-            yield list(zip(ks[lo:hi].tolist(), t_joins[lo:hi].tolist(), itertools.repeat(theta_ref), targets))
+            yield _Revolution(ks[lo:hi], t_joins[lo:hi], theta_ref, targets)
 
     def _past_out_of_reach(self, revolutions, starts: list[tuple[float, list[float]]]):
         """The joins of ``revolutions`` from the first of each that z may reach in time from
@@ -461,7 +501,7 @@ class ThreadCycle:
             while lo < hi:
                 mid = (lo + hi) // 2
                 lo, hi = (mid + 1, hi) if self._out_of_reach(revolution[mid], starts) else (lo, mid)
-            yield from revolution[lo:]
+            yield from revolution.joins(lo)
 
     def _out_of_reach(self, join: tuple, starts: list[tuple[float, list[float]]]) -> bool:
         """Whether z's fastest time from each of ``starts`` misses the join by MISS_MARGIN."""
@@ -492,9 +532,17 @@ class ThreadCycle:
         begins (the first one before its start too)."""
         out = np.empty((3, t.size))
         bounds = np.searchsorted(t, [begin for begin, _ in track[1:]], side="left").tolist()
+        moves = []  # (row, start, lo, hi) of the ruckig moves: sampled in one call
         for (_, stretch), lo, hi in zip(track, [0] + bounds, bounds + [t.size]):
-            if hi > lo:
+            if hi <= lo:
+                continue
+            if isinstance(stretch, _Moving):
+                moves.append((stretch.row, stretch.start, lo, hi))
+            else:
                 out[:, lo:hi] = stretch(t[lo:hi])
+        if moves:
+            rows, starts, lo, hi = zip(*moves)
+            sample_spans(np.stack(rows), starts, lo, hi, t, out, held=True)
         return out
 
     def ideal(self, t: np.ndarray) -> np.ndarray:

@@ -46,8 +46,10 @@ class Ramps:
         if key in self._known:
             return self._known[key]
         inp = self._inputs[joint]
-        inp.current_position, inp.current_velocity, inp.current_acceleration = ([x] for x in start)
-        inp.target_position, inp.target_velocity, inp.target_acceleration = ([x] for x in target)
+        p, v, a = start
+        inp.current_position, inp.current_velocity, inp.current_acceleration = [p], [v], [a]
+        p, v, a = target
+        inp.target_position, inp.target_velocity, inp.target_acceleration = [p], [v], [a]
         inp.minimum_duration = duration
         try:
             move = calculate(inp, self._ruckig)

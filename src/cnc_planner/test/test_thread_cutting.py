@@ -8,6 +8,7 @@ Example job: 600 rpm, start_z 4, end_z -16, major_radius 6, pitch 1.75, depth 1.
 import dataclasses
 import math
 from pathlib import Path
+from unittest import mock
 
 import numpy as np
 import pytest
@@ -17,7 +18,10 @@ from cnc_msgs_py.machine import load_machine
 from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.units import mm
 from cnc_planner.motion.builder import PlanBuilder
+from cnc_planner.motion.jerk_profile import ROW_LENGTH
 from cnc_planner.planning import plan_job
+from cnc_planner.kinds.thread import cycle
+from cnc_planner.kinds.thread._stock_kernel import inside_stock
 from cnc_planner.kinds.thread.checks import check_thread
 from cnc_planner.kinds.thread.planning import plan_thread
 from cnc_planner.kinds.thread.spec import ThreadError, ThreadSpec, ThreadVibration, pass_depths
@@ -227,6 +231,51 @@ def test_the_command_reads_alike_on_and_off_the_servo_grid(vibrating):
     off = np.abs(mid - (on_grid[:-1] + on_grid[1:]) / 2)
     assert np.all(off <= bound), (off.max(axis=0), bound)
     assert np.max(off) > 0.0  # read off the grid, not the grid's neighbour
+
+
+@pytest.mark.parametrize("change", [{}, {"taper": 1 / 16}, {"internal": True, "major_radius": 4.5e-3},
+                                    {"taper": 1 / 16, "internal": True, "major_radius": 4.5e-3, "starts": 2}])
+def test_the_compiled_stock_check_agrees_with_the_sampled_one_on_every_air_path(change):
+    """Every air path the search tries is checked against the stock by the compiled kernel
+    (_stock_kernel.c); the numpy check on the sampled tracks gives the same verdict on each
+    (straight, tapered, internal, two-start), and both verdicts occur."""
+    verdicts, original = [], cycle.ThreadCycle._cuts_stock
+    compiled = []
+
+    def both(self, x, z, t):
+        verdicts.append((original(self, x, z, t), self._cuts_stock_sampled(x, z, t)))
+        return verdicts[-1][0]
+
+    def counted(*args):
+        compiled.append(args)
+        return inside_stock(*args)
+
+    with mock.patch.object(cycle.ThreadCycle, "_cuts_stock", both), mock.patch.object(cycle, "inside_stock", counted):
+        plan(dataclasses.replace(SPEC, **change))
+    assert all(kernel == sampled for kernel, sampled in verdicts), verdicts
+    assert len(compiled) == len(verdicts)
+    assert sum(kernel for kernel, _ in verdicts) >= 10 and sum(not kernel for kernel, _ in verdicts) >= 7
+
+
+def test_a_pass_whose_exit_time_divides_to_just_below_its_servo_instant_is_joined():
+    """At 300 rpm the first pass of this two-start thread leaves its helix at 2.013 s of the
+    cycle, and 2.013 / 0.001 is 2012.9999999999998: the stock check of every air path onto
+    the next helix began an instant early, on the helix still cutting, and the job was
+    refused ("cannot reach the helix of pass 1"). The check starts at the exit's instant."""
+    job = dict(JOB, spindle_rpm=300, thread=dict(JOB["thread"], depth=1.073, passes=3, starts=2))
+    result = plan_job(parse_job(job), LATHE)
+    t = np.arange(0.0, result.duration + T / 2, T)
+    feedback = DriveModel(LATHE, T).simulate(*result.sample(t))[0]
+    report = analyze_thread(t, feedback[:, 0], feedback[:, 1], feedback[:, 2], job["thread"])
+    assert [p["start"] for p in report["passes"]] == [0, 1] * 4
+    assert report["chips_broken"] and report["full_depth"] and report["helix_residual_mm"] < 0.01
+
+
+def test_the_stock_kernel_refuses_pieces_that_leave_instants_uncovered():
+    row = np.zeros((1, ROW_LENGTH))
+    with pytest.raises(ValueError, match="x_rows: the pieces end at instant 3 of 4"):
+        inside_stock(row, np.zeros(1), np.array([0]), np.array([4]), row, np.zeros(1), np.array([0]), np.array([3]),
+                     np.zeros(4), 0.0, 0.0, -1.0, 0.02, -1.0, 0.006, 0.0)
 
 
 def test_internal_two_start_thread():

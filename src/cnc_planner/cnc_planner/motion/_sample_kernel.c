@@ -13,42 +13,7 @@
  * the values equal numpy's; test_jerk_profile.py checks that.
  */
 #include "../kernel_buffers.h"
-
-/* The row layout (jerk_profile.py): t_sum (7), start (8), p, v, a, j (8 each), the
- * duration, the brake's duration and second phase's start, its p, v, a, j (2 each). */
-enum { START = 7, PVAJ = 15, DURATION = 47, BRAKE = 48, BRAKE_T0 = 49, BRAKE_PVAJ = 50, ROW = 58 };
-
-/* One instant at local time t (s from the piece's start) of the dof whose row is r. */
-static void evaluate(const double *r, double t, double *p, double *v, double *a)
-{
-    const double brake = r[BRAKE];
-    const int braked = brake > 0;
-    const double local = braked ? t - brake : t;
-    int index = 0;
-    for (int k = 0; k < START; k++)
-        index += local >= r[k];
-    const int after = t >= r[DURATION];
-    if (after)
-        index = 7;
-    double dt = local - r[START + index];
-    double p0 = r[PVAJ + index], v0 = r[PVAJ + 8 + index], a0 = r[PVAJ + 16 + index], j = r[PVAJ + 24 + index];
-    if (braked) {
-        if (after) {  /* from the final state */
-            dt = t - (brake + r[START - 1]);
-        } else if (t < brake) {
-            const int second = t >= r[BRAKE_T0];
-            dt = t - (second ? r[BRAKE_T0] : 0.0);
-            p0 = r[BRAKE_PVAJ + second];
-            v0 = r[BRAKE_PVAJ + 2 + second];
-            a0 = r[BRAKE_PVAJ + 4 + second];
-            j = r[BRAKE_PVAJ + 6 + second];
-        }
-    }
-    const double tj = dt * j;
-    *a = a0 + tj;
-    *v = v0 + dt * (a0 + tj / 2);
-    *p = p0 + dt * (v0 + dt * (a0 / 2 + tj / 6));
-}
+#include "../ruckig_piece.h"
 
 enum { TABLE, STARTS, LO, HI, TS, P, V, A, ARRAYS };
 static const char *const NAMES[ARRAYS] = {"rows", "starts", "lo", "hi", "ts", "p", "v", "a"};
@@ -93,12 +58,9 @@ static PyObject *spans_py(PyObject *self, PyObject *args)
         for (Py_ssize_t k = 0; k < pieces; k++) {
             const double *row = (const double *)((char *)view[TABLE].buf + k * view[TABLE].strides[0]);
             const double start = AT(view[STARTS], double, k);
-            for (Py_ssize_t i = AT(view[LO], long, k); i < AT(view[HI], long, k); i++) {
-                double t = AT(view[TS], double, i) - start;
-                if (held && t > row[DURATION])  /* as np.minimum(t, duration) */
-                    t = row[DURATION];
-                evaluate(row, t, &AT(view[P], double, i), &AT(view[V], double, i), &AT(view[A], double, i));
-            }
+            for (Py_ssize_t i = AT(view[LO], long, k); i < AT(view[HI], long, k); i++)
+                evaluate_held(row, AT(view[TS], double, i) - start, held, &AT(view[P], double, i),
+                              &AT(view[V], double, i), &AT(view[A], double, i));
         }
         Py_END_ALLOW_THREADS
     }

@@ -34,6 +34,14 @@ def _row(profile, duration: float) -> list[float]:
             duration, brake.duration, brake.t[0], *brake.p, *brake.v, *brake.a, *brake.j]
 
 
+def rest_row(position: float) -> np.ndarray:
+    """A row that stands at ``position`` (a move of no duration: every phase starts there at
+    rest): sampled, exactly position, 0 and 0 at every instant."""
+    row = np.zeros(ROW_LENGTH)
+    row[15:23] = position  # the phases' start positions
+    return row
+
+
 class TrajectorySampler:
     """Samples one ruckig trajectory at many instants at once."""
 

@@ -21,11 +21,12 @@ from ruckig import Trajectory
 from cnc_msgs_py.machine import Machine
 from cnc_servo_bridge.drive import DriveModel
 
+from cnc_planner.kinds.thread._stock_kernel import inside_stock
 from cnc_planner.kinds.thread.helix import helix, helix_peaks
 from cnc_planner.kinds.thread.ramps import Ramps, z_to_speed
 from cnc_planner.kinds.thread.spec import JOINTS, TWO_PI, Pass, ThreadError, ThreadSpec, passes_of
 from cnc_planner.motion.compensation import COMPENSATION_TAIL, learned_command
-from cnc_planner.motion.jerk_profile import TrajectorySampler, sample_spans
+from cnc_planner.motion.jerk_profile import TrajectorySampler, rest_row, sample_spans
 
 COMPENSATION_BAND = (0.05, 0.12)  # of the servo rate (50..120 Hz at 1 ms): above the vibration,
 # below the encoder quantisation noise a wider band would feed into the command's jerk
@@ -75,19 +76,15 @@ def _latest(holds: Callable[[int], bool], lo: int, hi: int, hint: int | None) ->
     return lo
 
 
-def _held(position: float) -> Stretch:
-    return lambda t: np.stack([np.full(t.size, position), np.zeros(t.size), np.zeros(t.size)])
-
-
-class _Moving:
-    """One axis along a ruckig move from cycle time ``start``, at rest in its end state after
-    it: a stretch that _sample evaluates with its neighbours in one kernel call."""
+class _Move:
+    """One axis along a ruckig move (a row of TrajectorySampler.rows) from cycle time
+    ``start``, in its end state after it: a stretch the kernels evaluate with its neighbours
+    in one call (_sample, _cuts_stock)."""
 
     __slots__ = ("start", "row")
 
-    def __init__(self, start: float, trajectory: Trajectory) -> None:
-        self.start = start
-        self.row = TrajectorySampler(trajectory).rows[0]  # read once: a stretch is sampled many times
+    def __init__(self, start: float, row: np.ndarray) -> None:
+        self.start, self.row = start, row
 
     def __call__(self, t: np.ndarray) -> np.ndarray:
         out = np.empty((3, t.size))
@@ -95,8 +92,32 @@ class _Moving:
         return out
 
 
+def _pieces(track: list[Stretch], t: np.ndarray) -> tuple[tuple[np.ndarray, ...] | None, list[tuple]]:
+    """The stretches of ``track`` at sorted instants t, each from its start until the next
+    begins (the first one before its start too): its moves as one table for the kernels
+    (rows, starts, lo, hi: instants [lo, hi) each), or None if none is there, and the other
+    stretches as (stretch, lo, hi)."""
+    bounds = np.searchsorted(t, [begin for begin, _ in track[1:]], side="left").tolist()
+    moves, others = [], []
+    for (_, stretch), lo, hi in zip(track, [0] + bounds, bounds + [t.size]):
+        if hi > lo:
+            if isinstance(stretch, _Move):
+                moves.append((stretch.row, stretch.start, lo, hi))
+            else:
+                others.append((stretch, lo, hi))
+    if not moves:
+        return None, others
+    rows, starts, lo, hi = zip(*moves)
+    return (np.stack(rows), np.array(starts), np.array(lo, dtype=np.intp), np.array(hi, dtype=np.intp)), others
+
+
 def _moving(start: float, trajectory: Trajectory) -> Stretch:
-    return (start, _Moving(start, trajectory))
+    return (start, _Move(start, TrajectorySampler(trajectory).rows[0]))  # read once: sampled many times
+
+
+def _at_rest(position: float) -> Stretch:
+    """Standing at ``position`` from cycle time 0 (and before)."""
+    return (0.0, _Move(0.0, rest_row(position)))
 
 
 class _Revolution:
@@ -185,7 +206,7 @@ class ThreadCycle:
         self.x_clear = spec.origin[0] + spec.clear_radius
         self.x_air = spec.origin[0] + spec.air_radius
         self.start = start or (self.x_clear, spec.origin[1] + spec.start_z)
-        self.tracks: list[list[Stretch]] = [[(0.0, _held(self.start[0]))], [(0.0, _held(self.start[1]))]]
+        self.tracks: list[list[Stretch]] = [[_at_rest(self.start[0])], [_at_rest(self.start[1])]]
         self.cuts: list[CutTiming] = []
         for cut in passes_of(spec):
             for start in range(spec.starts):
@@ -279,7 +300,7 @@ class ThreadCycle:
         grid = None
         for tried in self._air_paths(target, t_join, starts, crossings, x_free):
             if grid is None:
-                grid = np.arange(math.floor(t_begin / self.period), round(t_join / self.period)) * self.period
+                grid = np.arange(round(t_begin / self.period), round(t_join / self.period)) * self.period
             if not self._cuts_stock(*(track + extra for track, extra in zip(self.tracks, tried)), grid):
                 return tried
         return None
@@ -298,7 +319,7 @@ class ThreadCycle:
             t_home = last.t_out + math.ceil(home.duration / period - 1e-9) * period
             down = self._plunge([self.x_clear, 0.0, 0.0], t_home, last.t_out)
             straight = _moving(last.t_out, home)
-            grid = np.arange(math.floor(last.t_out / period), round(t_home / period) + 1) * period
+            grid = np.arange(round(last.t_out / period), round(t_home / period) + 1) * period
             if down is not None and not self._cuts_stock(self.tracks[0] + [down], self.tracks[1][:-1] + [straight],
                                                          grid):
                 self.tracks[0].append(down)
@@ -317,7 +338,18 @@ class ThreadCycle:
 
     def _cuts_stock(self, x: list[Stretch], z: list[Stretch], t: np.ndarray) -> bool:
         """Whether the tip, on the tracks x and z at instants t, is ever inside the stock over
-        the thread (x is sampled only where z is over it: a first pass's approach never is)."""
+        the thread: compiled (_stock_kernel.c) where both tracks are ruckig moves there, as
+        they are on every air path; else _cuts_stock_sampled."""
+        (x_moves, x_others), (z_moves, z_others) = _pieces(x, t), _pieces(z, t)
+        if x_others or z_others or not t.size:
+            return self._cuts_stock_sampled(x, z, t)
+        spec = self.spec
+        x0, z0 = spec.origin
+        return inside_stock(*z_moves, *x_moves, t, z0, x0, spec.direction, spec.direction * spec.end_z, spec.radial,
+                            spec.major_radius, spec.surface_slope)
+
+    def _cuts_stock_sampled(self, x: list[Stretch], z: list[Stretch], t: np.ndarray) -> bool:
+        """_cuts_stock in numpy, on the tracks sampled (x only where z is over the stock)."""
         spec, s = self.spec, self.spec.direction
         x0, z0 = spec.origin
         z_at = self._sample(z, t)[0]
@@ -531,18 +563,11 @@ class ThreadCycle:
         """(3, len(t)) of one axis at sorted t: each stretch from its start until the next
         begins (the first one before its start too)."""
         out = np.empty((3, t.size))
-        bounds = np.searchsorted(t, [begin for begin, _ in track[1:]], side="left").tolist()
-        moves = []  # (row, start, lo, hi) of the ruckig moves: sampled in one call
-        for (_, stretch), lo, hi in zip(track, [0] + bounds, bounds + [t.size]):
-            if hi <= lo:
-                continue
-            if isinstance(stretch, _Moving):
-                moves.append((stretch.row, stretch.start, lo, hi))
-            else:
-                out[:, lo:hi] = stretch(t[lo:hi])
-        if moves:
-            rows, starts, lo, hi = zip(*moves)
-            sample_spans(np.stack(rows), starts, lo, hi, t, out, held=True)
+        moves, others = _pieces(track, t)
+        for stretch, lo, hi in others:
+            out[:, lo:hi] = stretch(t[lo:hi])
+        if moves is not None:
+            sample_spans(*moves, t, out, held=True)
         return out
 
     def ideal(self, t: np.ndarray) -> np.ndarray:

@@ -97,7 +97,12 @@ class ThreadSpec:
         """Radius of the stock's surface (the major radius, a cone on a taper thread) at
         program z: major_radius at the face, growing into an external part, shrinking into
         a bore, by taper/2 per unit of length."""
-        return self.major_radius + self.radial * self.taper / 2 * z
+        return self.major_radius + self.surface_slope * z
+
+    @property
+    def surface_slope(self) -> float:
+        """Radius of the stock's surface per unit of program z (0 on a straight thread)."""
+        return self.radial * self.taper / 2
 
     @property
     def clear_radius(self) -> float:

@@ -272,10 +272,14 @@ def test_a_pass_whose_exit_time_divides_to_just_below_its_servo_instant_is_joine
 
 
 def test_the_stock_kernel_refuses_pieces_that_leave_instants_uncovered():
-    row = np.zeros((1, ROW_LENGTH))
-    with pytest.raises(ValueError, match="x_rows: the pieces end at instant 3 of 4"):
-        inside_stock(row, np.zeros(1), np.array([0]), np.array([4]), row, np.zeros(1), np.array([0]), np.array([3]),
-                     np.zeros(4), 0.0, 0.0, -1.0, 0.02, -1.0, 0.006, 0.0)
+    row = np.zeros(ROW_LENGTH)
+    with pytest.raises(ValueError, match="x_pieces: the pieces end at instant 3 of 4"):
+        inside_stock([(row, 0.0, 0, 4)], [(row, 0.0, 0, 3)], np.zeros(4), 0.0, 0.0, -1.0, 0.02, -1.0, 0.006, 0.0)
+    with pytest.raises(ValueError, match="z_pieces: piece 1 does not continue at instant 2"):
+        inside_stock([(row, 0.0, 0, 2), (row, 0.0, 3, 4)], [(row, 0.0, 0, 4)], np.zeros(4), 0.0, 0.0, -1.0, 0.02,
+                     -1.0, 0.006, 0.0)
+    with pytest.raises(ValueError, match="x_pieces: piece 0's row is not 58 contiguous values"):
+        inside_stock([(row, 0.0, 0, 4)], [(row[:57], 0.0, 0, 4)], np.zeros(4), 0.0, 0.0, -1.0, 0.02, -1.0, 0.006, 0.0)
 
 
 def test_internal_two_start_thread():

@@ -11,89 +11,116 @@
 #include "../../kernel_buffers.h"
 #include "../../ruckig_piece.h"
 
-enum { Z_ROWS, Z_STARTS, Z_LO, Z_HI, X_ROWS, X_STARTS, X_LO, X_HI, TS, ARRAYS };
-static const char *const NAMES[ARRAYS] = {"z_rows", "z_starts", "z_lo", "z_hi", "x_rows", "x_starts", "x_lo",
-                                          "x_hi", "ts"};
+enum { MAX_PIECES = 64 };  /* of one axis over one air path: a handful */
 
-/* Whether the pieces of one axis (rows, starts, lo, hi from ``first``) cover the instants
- * [0, n) one after the other, as ThreadCycle._pieces gives them; else the error is set. */
-static int covers(const Py_buffer *v, int first, Py_ssize_t n)
+/* One axis's pieces, as ThreadCycle._pieces gives them: (row, start, lo, hi) each, the
+ * instants [lo, hi) one after the other over all of [0, n). */
+typedef struct {
+    Py_ssize_t count;
+    Py_buffer rows[MAX_PIECES];
+    double starts[MAX_PIECES];
+    Py_ssize_t hi[MAX_PIECES];
+} Pieces;
+
+static void release(Pieces *pieces)
 {
-    const Py_buffer *rows = &v[first], *starts = &v[first + 1], *lo = &v[first + 2], *hi = &v[first + 3];
-    const Py_ssize_t pieces = starts->shape[0];
-    if (rows->ndim != 2 || rows->shape[0] != pieces || rows->shape[1] != ROW || rows->strides[1] != sizeof(double)
-        || starts->ndim != 1 || lo->ndim != 1 || hi->ndim != 1 || lo->shape[0] != pieces || hi->shape[0] != pieces) {
-        PyErr_Format(PyExc_ValueError, "%s: expected %zd rows of %d and their starts, lo and hi", NAMES[first],
-                     pieces, ROW);
-        return 0;
-    }
-    Py_ssize_t next = 0;
-    for (Py_ssize_t k = 0; k < pieces; k++) {
-        if (AT(*lo, long, k) != next || AT(*hi, long, k) <= next) {
-            PyErr_Format(PyExc_ValueError, "%s: piece %zd does not continue at instant %zd", NAMES[first], k, next);
-            return 0;
-        }
-        next = AT(*hi, long, k);
-    }
-    if (next != n) {
-        PyErr_Format(PyExc_ValueError, "%s: the pieces end at instant %zd of %zd", NAMES[first], next, n);
-        return 0;
-    }
-    return 1;
+    for (Py_ssize_t k = 0; k < pieces->count; k++)
+        PyBuffer_Release(&pieces->rows[k]);
+    pieces->count = 0;
 }
 
-/* Position of the axis whose pieces start at view ``first``, at instant i, its piece *k
- * advanced to the one holding i. */
-static double position(const Py_buffer *v, int first, Py_ssize_t *k, Py_ssize_t i)
+/* The pieces of ``seq`` into ``pieces``; 0 with the error set (naming ``name``) if they are
+ * not pieces covering [0, n) in order. */
+static int take_pieces(PyObject *seq, Pieces *pieces, Py_ssize_t n, const char *name)
 {
-    while (AT(v[first + 3], long, *k) <= i)
+    pieces->count = 0;
+    PyObject *fast = PySequence_Fast(seq, name);
+    if (fast == NULL)
+        return 0;
+    const Py_ssize_t count = PySequence_Fast_GET_SIZE(fast);
+    Py_ssize_t next = 0;
+    int ok = count <= MAX_PIECES;
+    if (!ok)
+        PyErr_Format(PyExc_ValueError, "%s: more than %d pieces", name, MAX_PIECES);
+    for (Py_ssize_t k = 0; ok && k < count; k++) {
+        PyObject *row;
+        Py_ssize_t lo, hi;
+        ok = PyArg_ParseTuple(PySequence_Fast_GET_ITEM(fast, k), "Odnn", &row, &pieces->starts[k], &lo, &hi);
+        if (ok && take(row, &pieces->rows[k], 0, "d", name) < 0)
+            ok = 0;
+        else if (ok) {
+            pieces->count = k + 1;
+            if (pieces->rows[k].ndim != 1 || pieces->rows[k].shape[0] != ROW || pieces->rows[k].strides[0] != sizeof(double)) {
+                PyErr_Format(PyExc_ValueError, "%s: piece %zd's row is not %d contiguous values", name, k, ROW);
+                ok = 0;
+            } else if (lo != next || hi <= lo) {
+                PyErr_Format(PyExc_ValueError, "%s: piece %zd does not continue at instant %zd", name, k, next);
+                ok = 0;
+            }
+            pieces->hi[k] = next = hi;
+        }
+    }
+    if (ok && next != n) {
+        PyErr_Format(PyExc_ValueError, "%s: the pieces end at instant %zd of %zd", name, next, n);
+        ok = 0;
+    }
+    Py_DECREF(fast);
+    if (!ok)
+        release(pieces);
+    return ok;
+}
+
+/* Position at plan time t, instant i, of the axis whose piece *k is advanced to the one
+ * holding i. */
+static double position(const Pieces *pieces, Py_ssize_t *k, Py_ssize_t i, double t)
+{
+    while (pieces->hi[*k] <= i)
         (*k)++;
-    const double *row = (const double *)((char *)v[first].buf + *k * v[first].strides[0]);
-    double p, vel, acc;
-    evaluate_held(row, AT(v[TS], double, i) - AT(v[first + 1], double, *k), 1, &p, &vel, &acc);
+    double p, v, a;
+    evaluate_held((const double *)pieces->rows[*k].buf, t - pieces->starts[*k], 1, &p, &v, &a);
     return p;
 }
 
 static PyObject *inside_stock_py(PyObject *self, PyObject *args)
 {
-    PyObject *obj[ARRAYS];
-    Py_buffer view[ARRAYS];
+    PyObject *z_seq, *x_seq, *ts_obj;
     double z0, x0, s, s_end, radial, major, slope;
+    Py_buffer ts;
+    Pieces z, x;
     (void)self;
-    if (!PyArg_ParseTuple(args, "OOOOOOOOOddddddd:inside_stock", &obj[Z_ROWS], &obj[Z_STARTS], &obj[Z_LO],
-                          &obj[Z_HI], &obj[X_ROWS], &obj[X_STARTS], &obj[X_LO], &obj[X_HI], &obj[TS], &z0, &x0,
-                          &s, &s_end, &radial, &major, &slope))
+    if (!PyArg_ParseTuple(args, "OOOddddddd:inside_stock", &z_seq, &x_seq, &ts_obj, &z0, &x0, &s, &s_end, &radial,
+                          &major, &slope))
         return NULL;
-    int taken = take_all(obj, view, ARRAYS, "ddllddlld", ARRAYS, NAMES);
-    int ok = taken == ARRAYS && view[TS].ndim == 1;
-    if (taken == ARRAYS && !ok)
+    if (take(ts_obj, &ts, 0, "d", "ts") < 0)
+        return NULL;
+    const Py_ssize_t n = ts.ndim == 1 ? ts.shape[0] : -1;
+    if (n < 0)
         PyErr_SetString(PyExc_ValueError, "ts: expected one dimension");
-    const Py_ssize_t n = ok ? view[TS].shape[0] : 0;
-    ok = ok && covers(view, Z_ROWS, n) && covers(view, X_ROWS, n);
+    int ok = n >= 0 && take_pieces(z_seq, &z, n, "z_pieces") && take_pieces(x_seq, &x, n, "x_pieces");
     int inside = 0;
     if (ok) {
         Py_ssize_t kz = 0, kx = 0;
         for (Py_ssize_t i = 0; i < n && !inside; i++) {
-            const double d = position(view, Z_ROWS, &kz, i) - z0;  /* program z */
+            const double t = AT(ts, double, i);
+            const double d = position(&z, &kz, i, t) - z0;  /* program z */
             if (!(s * d >= 0.0 && s * d <= s_end))  /* not over the thread */
                 continue;
             const double surface = major + slope * d;
-            inside = radial * (position(view, X_ROWS, &kx, i) - x0 - surface) > 0.0;
+            inside = radial * (position(&x, &kx, i, t) - x0 - surface) > 0.0;
         }
     }
-    PyObject *done = finish(view, taken, ok);
-    if (done == NULL)
-        return NULL;
-    Py_DECREF(done);
-    return PyBool_FromLong(inside);
+    release(&z);
+    release(&x);
+    PyBuffer_Release(&ts);
+    return ok ? PyBool_FromLong(inside) : NULL;
 }
 
 static PyMethodDef METHODS[] = {
     {"inside_stock", inside_stock_py, METH_VARARGS,
-     "inside_stock(z_rows, z_starts, z_lo, z_hi, x_rows, x_starts, x_lo, x_hi, ts, z0, x0, s, s_end, radial,\n"
-     "major, slope): whether at some instant of ts, z (its pieces: rows, plan-time starts, and the\n"
-     "instants [lo, hi) each covers, one after the other) lies over the thread (0 <= s*(z - z0) <= s_end)\n"
-     "and x (likewise) inside the stock: radial*(x - x0 - (major + slope*(z - z0))) > 0."},
+     "inside_stock(z_pieces, x_pieces, ts, z0, x0, s, s_end, radial, major, slope): whether at some\n"
+     "instant of ts, z (its pieces: (row, plan-time start, lo, hi), the instants [lo, hi) one after\n"
+     "the other) lies over the thread (0 <= s*(z - z0) <= s_end) and x (likewise) inside the stock:\n"
+     "radial*(x - x0 - (major + slope*(z - z0))) > 0."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -92,11 +92,10 @@ class _Move:
         return out
 
 
-def _pieces(track: list[Stretch], t: np.ndarray) -> tuple[tuple[np.ndarray, ...] | None, list[tuple]]:
+def _pieces(track: list[Stretch], t: np.ndarray) -> tuple[list[tuple], list[tuple]]:
     """The stretches of ``track`` at sorted instants t, each from its start until the next
-    begins (the first one before its start too): its moves as one table for the kernels
-    (rows, starts, lo, hi: instants [lo, hi) each), or None if none is there, and the other
-    stretches as (stretch, lo, hi)."""
+    begins (the first one before its start too): its moves as the kernels take them, (row,
+    start, lo, hi) for the instants [lo, hi), and the other stretches as (stretch, lo, hi)."""
     bounds = np.searchsorted(t, [begin for begin, _ in track[1:]], side="left").tolist()
     moves, others = [], []
     for (_, stretch), lo, hi in zip(track, [0] + bounds, bounds + [t.size]):
@@ -105,10 +104,7 @@ def _pieces(track: list[Stretch], t: np.ndarray) -> tuple[tuple[np.ndarray, ...]
                 moves.append((stretch.row, stretch.start, lo, hi))
             else:
                 others.append((stretch, lo, hi))
-    if not moves:
-        return None, others
-    rows, starts, lo, hi = zip(*moves)
-    return (np.stack(rows), np.array(starts), np.array(lo, dtype=np.intp), np.array(hi, dtype=np.intp)), others
+    return moves, others
 
 
 def _moving(start: float, trajectory: Trajectory) -> Stretch:
@@ -345,7 +341,7 @@ class ThreadCycle:
             return self._cuts_stock_sampled(x, z, t)
         spec = self.spec
         x0, z0 = spec.origin
-        return inside_stock(*z_moves, *x_moves, t, z0, x0, spec.direction, spec.direction * spec.end_z, spec.radial,
+        return inside_stock(z_moves, x_moves, t, z0, x0, spec.direction, spec.direction * spec.end_z, spec.radial,
                             spec.major_radius, spec.surface_slope)
 
     def _cuts_stock_sampled(self, x: list[Stretch], z: list[Stretch], t: np.ndarray) -> bool:
@@ -566,8 +562,9 @@ class ThreadCycle:
         moves, others = _pieces(track, t)
         for stretch, lo, hi in others:
             out[:, lo:hi] = stretch(t[lo:hi])
-        if moves is not None:
-            sample_spans(*moves, t, out, held=True)
+        if moves:
+            rows, starts, lo, hi = zip(*moves)
+            sample_spans(np.stack(rows), starts, lo, hi, t, out, held=True)
         return out
 
     def ideal(self, t: np.ndarray) -> np.ndarray:

@@ -258,10 +258,13 @@ class ThreadCycle:
             # soon, and the axes stay at rest longer: the latest that can be reached smoothly
             latest = math.floor((theta_ref + psi_room - self.theta0) / spec.spindle_speed / period + 1e-9)
             t_lates = np.arange(latest, k, -1) * period
-            late_targets = helix(spec, cut, self.psi(theta_ref, t_lates)).transpose(1, 2, 0)
-            for t_late, late_target in zip(t_lates.tolist(), late_targets):
+            # the helix there and a jerk probe later (_smooth_join's), in one call
+            ends = helix(spec, cut, self.psi(theta_ref, np.concatenate([t_lates, t_lates + JERK_PROBE_S])))
+            late_targets, probes = ends[:, :t_lates.size].transpose(1, 2, 0), ends[2, t_lates.size:]
+            for t_late, late_target, probe in zip(t_lates.tolist(), late_targets, probes):
                 late = self._air_path(late_target, t_late, t_begin, starts, crossings, x_free)
-                if late is not None and self._smooth_join(cut, theta_ref, t_late, late):
+                if late is not None and self._smooth_join(cut, theta_ref, t_late, late,
+                                                          np.stack([late_target[:, 2], probe])):
                     t_join, tried = t_late, late
                     break
         on_helix = self._on_helix(cut, theta_ref)
@@ -272,14 +275,17 @@ class ThreadCycle:
         self.tracks[1].append(_moving(t_out, stop))
         self.cuts.append(CutTiming(cut, start, theta_ref, t_begin, t_join, t_out, retract, stop))
 
-    def _smooth_join(self, cut: Pass, theta_ref: float, t_join: float, tried: list[list[Stretch]]) -> bool:
+    def _smooth_join(self, cut: Pass, theta_ref: float, t_join: float, tried: list[list[Stretch]],
+                     after: np.ndarray | None = None) -> bool:
         """Whether the air path's jerk steps onto the helix by at most JOIN_JERK_STEP of
         each axis's limit: the compensated command leads a jerk step with a spike that
         grows with it (the ramps end at their share of the limit, a fast vibration runs
-        near the limit, and they may meet with opposite signs)."""
+        near the limit, and they may meet with opposite signs). ``after``: the helix's
+        acceleration at t_join and JERK_PROBE_S later (2 instants, x z), if known."""
         eps = JERK_PROBE_S
         before = np.array([t_join - 2 * eps, t_join - eps])
-        after = helix(self.spec, cut, self.psi(theta_ref, np.array([t_join, t_join + eps])))[2]  # (2 instants, x z)
+        if after is None:
+            after = helix(self.spec, cut, self.psi(theta_ref, np.array([t_join, t_join + eps])))[2]
         for j, axis in enumerate(JOINTS):
             begin, last = tried[j][-1]  # the stretch onto the join holds both instants, if it began by then
             a = (last(before) if begin <= before[0] else self._sample(self.tracks[j] + tried[j], before))[2]

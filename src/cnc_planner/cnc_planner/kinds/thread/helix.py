@@ -50,8 +50,8 @@ def helix(spec: ThreadSpec, cut: Pass, psi: np.ndarray) -> np.ndarray:
     out = np.empty((3, psi.size, 2))
     out[0, :, 0] = spec.origin[0] + spec.surface(groove) + spec.radial * depth
     out[0, :, 1] = spec.origin[1] + groove + s * depth * tan
-    out[1] = np.stack([cone + spec.radial * ddepth, s * (spec.lead_speed + tan * ddepth)], 1)
-    out[2] = np.stack([spec.radial * dddepth, s * tan * dddepth], 1)
+    out[1, :, 0], out[1, :, 1] = cone + spec.radial * ddepth, s * (spec.lead_speed + tan * ddepth)
+    out[2, :, 0], out[2, :, 1] = spec.radial * dddepth, s * tan * dddepth
     return out
 
 

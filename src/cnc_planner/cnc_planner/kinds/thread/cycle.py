@@ -196,6 +196,7 @@ class ThreadCycle:
         self.spec, self.machine, self.period, self.theta0 = spec, machine, period, theta0
         self.settled = settled
         self._ramps = Ramps(machine)
+        self._retract_states: tuple[Trajectory | None, dict[int, list[float]]] = (None, {})  # _retracting's
         self._turn_hint: int | None = None  # servo periods after a pass's exit that x last turned
         # back after to plunge onto the next helix (_plunge's search starts there)
         self.t_lead = round(LEAD_TIME / period) * period
@@ -466,8 +467,7 @@ class ThreadCycle:
         last = self.cuts[-1]
 
         def fastest(k: int) -> float:
-            state = [float(q[0]) for q in last.retract.at_time(min(k * period, last.retract.duration))]
-            move = self._ramps.reach("x", state, x_target)
+            move = self._ramps.reach("x", self._retracting(k), x_target)
             return math.inf if move is None else move.duration
 
         n = round((t_join - last.t_out) / period)  # periods from the exit to the join
@@ -483,11 +483,21 @@ class ThreadCycle:
             return None
         turn = self._turn_hint = _latest(arrives, 1, n, hint)
         t_turn = last.t_out + turn * period
-        state = [float(q[0]) for q in last.retract.at_time(min(turn * period, last.retract.duration))]
-        plunge = self._ramps.reach("x", state, x_target, duration=t_join - t_turn)
+        plunge = self._ramps.reach("x", self._retracting(turn), x_target, duration=t_join - t_turn)
         if plunge is None or abs(plunge.duration - (t_join - t_turn)) > 1e-9:
             return None
         return _moving(t_turn, plunge)
+
+    def _retracting(self, k: int) -> list[float]:
+        """x's state (p, v, a) k servo periods after the last pass's exit, on its retract:
+        kept, as every candidate join of a pass asks for the same few turns."""
+        retract = self.cuts[-1].retract
+        if self._retract_states[0] is not retract:
+            self._retract_states = (retract, {})
+        states = self._retract_states[1]
+        if k not in states:
+            states[k] = [float(q[0]) for q in retract.at_time(min(k * self.period, retract.duration))]
+        return states[k]
 
     def _on_helix(self, cut: Pass, theta_ref: float) -> Callable[[np.ndarray], np.ndarray]:
         """Cycle times -> helix of the pass joined at theta_ref; x and z ask for the same

@@ -3,10 +3,11 @@ the helix revolutions that z cannot reach in time, bisecting the first one it ca
 searching x's latest turn back from the previous join's, finds the joins that trying every
 servo instant and bisecting every turn finds, on drawn lathes and threads.
 
-The premises (z's slack never falls within a revolution, x's never rises the later it
-turns back) hold where the motion followed stays within the ramps' limits; the cycle only
-bisects joins there, so the joins and the whole plan must be the exhaustive search's, bit
-for bit.
+Within a revolution the later starts and face crossings z may return from are passed over
+up to the first join each reaches in time, likewise. The premises (z's slack never falls
+within a revolution, x's never rises the later it turns back) hold where the motion
+followed stays within the ramps' limits; the cycle only bisects joins there, so the joins
+and the whole plan must be the exhaustive search's, bit for bit.
 """
 from __future__ import annotations
 
@@ -57,12 +58,17 @@ def threads(draw) -> ThreadSpec:
 
 
 def test_the_joins_found_are_the_exhaustive_searchs_on_drawn_lathes_and_threads():
-    out_of_reach, latest = ThreadCycle._out_of_reach, cycle._latest
+    out_of_reach, may_reach, latest = ThreadCycle._out_of_reach, ThreadCycle._may_reach, cycle._latest
     passed_over = []  # joins the bisection ruled out, over every example
+    gated = []  # later starts and face crossings _may_reach ruled out
 
     def counting(self, join, starts):
         passed_over.append(out_of_reach(self, join, starts))
         return passed_over[-1]
+
+    def gating(self, place, t_from, state):
+        gated.append(not may_reach(self, place, t_from, state))
+        return not gated[-1]
 
     outcomes = []
 
@@ -70,10 +76,12 @@ def test_the_joins_found_are_the_exhaustive_searchs_on_drawn_lathes_and_threads(
               suppress_health_check=[HealthCheck.too_slow])
     @given(threads(), st.one_of(st.just(LATHE), machines(LATHE)))
     def run(spec: ThreadSpec, machine: Machine) -> None:
-        with mock.patch.object(ThreadCycle, "_out_of_reach", counting):
+        with mock.patch.object(ThreadCycle, "_out_of_reach", counting), \
+                mock.patch.object(ThreadCycle, "_may_reach", gating):
             bisected = planned(spec, machine)
         with (mock.patch.object(ThreadCycle, "_past_out_of_reach",
                                 lambda self, revolutions, starts: itertools.chain.from_iterable(revolutions)),
+              mock.patch.object(ThreadCycle, "_may_reach", lambda self, place, t_from, state: True),
               mock.patch.object(cycle, "_latest", lambda holds, lo, hi, hint: latest(holds, lo, hi, None))):
             exhaustive = planned(spec, machine)
         if isinstance(exhaustive, str):
@@ -87,3 +95,4 @@ def test_the_joins_found_are_the_exhaustive_searchs_on_drawn_lathes_and_threads(
     run()
     assert outcomes.count("planned") >= 4, outcomes
     assert sum(passed_over) > 100  # the bisection did pass over joins: not a vacuous equality
+    assert sum(gated) > 20, sum(gated)  # and later starts and crossings were passed over

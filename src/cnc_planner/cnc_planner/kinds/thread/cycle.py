@@ -121,16 +121,18 @@ class _Revolution:
     helix state there (rows x, z; columns p, v, a)): each made when it is asked for (most
     of a revolution is passed over unread)."""
 
-    __slots__ = ("ks", "t_joins", "theta_ref", "targets")
+    __slots__ = ("ks", "t_joins", "theta_ref", "targets", "reach")
 
     def __init__(self, ks: np.ndarray, t_joins: np.ndarray, theta_ref: float, targets: np.ndarray) -> None:
         self.ks, self.t_joins, self.theta_ref, self.targets = ks, t_joins, theta_ref, targets
+        self.reach: dict[tuple, tuple[int, int]] = {}  # ThreadCycle._may_reach's bisections
 
     def __len__(self) -> int:
         return self.ks.size
 
-    def __getitem__(self, i: int) -> tuple[int, float, float, np.ndarray]:
-        return int(self.ks[i]), float(self.t_joins[i]), self.theta_ref, self.targets[i]
+    def __getitem__(self, i: int) -> tuple[int, float, float, np.ndarray, tuple[_Revolution, int]]:
+        """The join and its place (this revolution, i)."""
+        return int(self.ks[i]), float(self.t_joins[i]), self.theta_ref, self.targets[i], (self, i)
 
     def joins(self, lo: int = 0):
         """The joins from the lo-th on."""
@@ -242,12 +244,10 @@ class ThreadCycle:
         psi_room = TWO_PI * (spec.start_z / spec.pitch - JOIN_ROOM_REVS)  # the latest join before the face
         first = max(math.ceil(starts[0][0] / period - 1e-9) + 1, math.ceil(self.settled / period - 1e-9))
         revolutions = self._revolutions(cut, phase, psi_room, first, first + math.ceil(MAX_AIR_S / period))
-        if np.all(helix_peaks(spec, cut)[1] <= self._ramps.limits("z")):
-            joins = self._past_out_of_reach(revolutions, starts)
-        else:
-            joins = itertools.chain.from_iterable(revolutions)
-        for k, t_join, theta_ref, target in joins:
-            tried = self._air_path(target, t_join, t_begin, starts, crossings, x_free)
+        within = bool(np.all(helix_peaks(spec, cut)[1] <= self._ramps.limits("z")))  # _past_out_of_reach's premise
+        joins = self._past_out_of_reach(revolutions, starts) if within else itertools.chain.from_iterable(revolutions)
+        for k, t_join, theta_ref, target, place in joins:
+            tried = self._air_path(target, t_join, t_begin, starts, crossings, x_free, place if within else None)
             if tried is not None and self._smooth_join(cut, theta_ref, t_join, tried):
                 break
         else:
@@ -296,12 +296,13 @@ class ThreadCycle:
         return True
 
     def _air_path(self, target: np.ndarray, t_join: float, t_begin: float, starts: list[tuple[float, list[float]]],
-                  crossings: list[tuple[float, list[float], Trajectory]], x_free: float) -> list[list[Stretch]] | None:
+                  crossings: list[tuple[float, list[float], Trajectory]], x_free: float,
+                  place: tuple[_Revolution, int] | None = None) -> list[list[Stretch]] | None:
         """The first of _air_paths onto ``target`` at t_join that keeps the tool out of the
         stock from t_begin on, or None (the grid is built for the first path found: most
         candidate joins find none)."""
         grid = None
-        for tried in self._air_paths(target, t_join, starts, crossings, x_free):
+        for tried in self._air_paths(target, t_join, starts, crossings, x_free, place):
             if grid is None:
                 grid = np.arange(round(t_begin / self.period), round(t_join / self.period)) * self.period
             if not self._cuts_stock(*(track + extra for track, extra in zip(self.tracks, tried)), grid):
@@ -373,20 +374,25 @@ class ThreadCycle:
         return t_go, last.stop.at_time(last.stop.duration)[0][0]
 
     def _air_paths(self, target: np.ndarray, t_join: float, starts: list[tuple[float, list[float]]],
-                   crossings: list[tuple[float, list[float], Trajectory]], x_free: float):
+                   crossings: list[tuple[float, list[float], Trajectory]], x_free: float,
+                   place: tuple[_Revolution, int] | None = None):
         """The x plunge and z returns that reach the helix state ``target`` (rows x, z)
         exactly at t_join, best first: z from each of ``starts`` (time, state) that can,
         stretched to the time there is; then, from the last (at rest), z turning at rest
         TURN_ROOM in front of the join, so that x plunges while z is clear of the face.
         The x plunge (a bisection over ruckig) is found only once a z return can reach the
-        join: most candidate joins fail on z's fastest time alone."""
+        join: most candidate joins fail on z's fastest time alone. With the join's ``place``
+        in its revolution, a later start or crossing is passed over where _may_reach rules
+        it out (the first start: _past_out_of_reach did)."""
         @functools.cache
         def plunge() -> Stretch | None:
             return self._plunge(target[0].tolist(), t_join, x_free)
 
         z_target = target[1].tolist()
         late = None
-        for t_go, z_state in starts:
+        for i, (t_go, z_state) in enumerate(starts):
+            if i and place is not None and not self._may_reach(place, t_go, z_state):
+                continue
             fastest = self._ramps.reach("z", z_state, z_target)
             if fastest is None or fastest.duration > t_join - t_go + 1e-12:
                 continue
@@ -401,7 +407,7 @@ class ThreadCycle:
             yield [[plunge()], [_moving(t_leave, back)]]
             late = (t_go, z_state, fastest)
         if self.cuts:
-            for z in self._through_face(starts[0][0], crossings, z_target, t_join):
+            for z in self._through_face(starts[0][0], crossings, z_target, t_join, place):
                 if plunge() is None:
                     return
                 yield [[plunge()], z]
@@ -441,12 +447,12 @@ class ThreadCycle:
         return crossings
 
     def _through_face(self, t_go: float, crossings: list[tuple[float, list[float], Trajectory]],
-                      z_target: list[float], t_join: float):
+                      z_target: list[float], t_join: float, place: tuple[_Revolution, int] | None = None):
         """z returns from the helix's exit (left at t_go) that cross the face as soon as they
         can (``crossings``) and turn in front of it onto the join at t_join: the longest z can
         spend clear of the face, for x to plunge on the deepest passes."""
         for t_face, face, there in crossings:
-            if t_face >= t_join:
+            if t_face >= t_join or place is not None and not self._may_reach(place, t_face, face):
                 continue
             onto = self._ramps.reach("z", face, z_target, duration=t_join - t_face)
             if onto is None or abs(onto.duration - (t_join - t_face)) > 1e-9:
@@ -547,9 +553,28 @@ class ThreadCycle:
                 lo, hi = (mid + 1, hi) if self._out_of_reach(revolution[mid], starts) else (lo, mid)
             yield from revolution.joins(lo)
 
+    def _may_reach(self, place: tuple[_Revolution, int], t_from: float, state: list[float]) -> bool:
+        """Whether z, leaving ``state`` at t_from, may reach the join at ``place`` (its
+        revolution, its index there) in time: False only where z's fastest time misses it by
+        MISS_MARGIN (_out_of_reach). Those joins are the revolution's first ones up to the
+        first that z reaches (_past_out_of_reach's premise), found by bisection once per
+        state, from the first join asked about: a few ruckig queries instead of one per
+        candidate join (a deep pass's search asks each of its later starts and face
+        crossings about twenty joins that miss)."""
+        revolution, i = place
+        key = (t_from, *state)
+        asked, first = revolution.reach.get(key, (len(revolution), 0))
+        if i < asked:
+            lo, hi = i, len(revolution)  # the first join z reaches lies in [lo, hi] (hi: none)
+            while lo < hi:
+                mid = (lo + hi) // 2
+                lo, hi = (mid + 1, hi) if self._out_of_reach(revolution[mid], [(t_from, state)]) else (lo, mid)
+            asked, first = revolution.reach[key] = (i, lo)
+        return i >= first
+
     def _out_of_reach(self, join: tuple, starts: list[tuple[float, list[float]]]) -> bool:
         """Whether z's fastest time from each of ``starts`` misses the join by MISS_MARGIN."""
-        _, t_join, _, target = join
+        _, t_join, _, target, _ = join
         z_target = target[1].tolist()  # as _air_paths asks: Ramps keeps the answers
         for t_go, z_state in starts:
             fastest = self._ramps.reach("z", z_state, z_target)

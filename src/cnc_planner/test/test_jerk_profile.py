@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from ruckig import ControlInterface, InputParameter, Result, Ruckig, Synchronization, Trajectory
 
-from cnc_planner.motion.jerk_profile import TrajectorySampler, add_corrections, sample_spans
+from cnc_planner.motion.jerk_profile import TrajectorySampler, add_corrections, axis_row, sample_spans
 
 
 def random_trajectories(count: int, seed: int):
@@ -94,6 +94,16 @@ def test_held_pieces_equal_sampling_at_the_end_after_it_bit_for_bit():
     sample_spans(*args, unheld)
     assert np.array_equal(held, np.concatenate(expected, axis=1))
     assert moving > 20 and not np.array_equal(held, unheld)
+
+
+def test_a_one_dof_row_is_the_samplers_and_several_dofs_have_none():
+    one = [tr for tr in random_trajectories(120, seed=17) if tr.degrees_of_freedom == 1]
+    assert len(one) > 20
+    for trajectory in one:
+        assert np.array_equal(axis_row(trajectory), TrajectorySampler(trajectory).rows[0])
+    several = next(tr for tr in random_trajectories(20, seed=17) if tr.degrees_of_freedom > 1)
+    with pytest.raises(ValueError, match="one-dof"):
+        axis_row(several)
 
 
 def test_bad_spans_are_refused_naming_the_array():

@@ -34,6 +34,15 @@ def _row(profile, duration: float) -> list[float]:
             duration, brake.duration, brake.t[0], *brake.p, *brake.v, *brake.a, *brake.j]
 
 
+def axis_row(trajectory: Trajectory) -> np.ndarray:
+    """The row of a one-dof trajectory (TrajectorySampler(trajectory).rows[0], read without
+    the sampler: a search reads thousands of single-axis moves)."""
+    sections = trajectory.profiles
+    if len(sections) != 1 or len(sections[0]) != 1:
+        raise ValueError("only one-dof trajectories without intermediate waypoints have one row")
+    return np.array(_row(sections[0][0], float(trajectory.duration)))
+
+
 def rest_row(position: float) -> np.ndarray:
     """A row that stands at ``position`` (a move of no duration: every phase starts there at
     rest): sampled, exactly position, 0 and 0 at every instant."""

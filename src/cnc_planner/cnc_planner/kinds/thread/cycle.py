@@ -26,7 +26,7 @@ from cnc_planner.kinds.thread.helix import helix, helix_peaks
 from cnc_planner.kinds.thread.ramps import Ramps, z_to_speed
 from cnc_planner.kinds.thread.spec import JOINTS, TWO_PI, Pass, ThreadError, ThreadSpec, passes_of
 from cnc_planner.motion.compensation import COMPENSATION_TAIL, learned_command
-from cnc_planner.motion.jerk_profile import TrajectorySampler, rest_row, sample_spans
+from cnc_planner.motion.jerk_profile import TrajectorySampler, axis_row, rest_row, sample_spans
 
 COMPENSATION_BAND = (0.05, 0.12)  # of the servo rate (50..120 Hz at 1 ms): above the vibration,
 # below the encoder quantisation noise a wider band would feed into the command's jerk
@@ -108,7 +108,7 @@ def _pieces(track: list[Stretch], t: np.ndarray) -> tuple[list[tuple], list[tupl
 
 
 def _moving(start: float, trajectory: Trajectory) -> Stretch:
-    return (start, _Move(start, TrajectorySampler(trajectory).rows[0]))  # read once: sampled many times
+    return (start, _Move(start, axis_row(trajectory)))  # read once: sampled many times
 
 
 def _at_rest(position: float) -> Stretch:

@@ -38,6 +38,7 @@ TURN_ROOM = (0.5e-3, 1e-3, 2e-3)  # m in front of a join where z may turn at res
 # plunges while z is clear of the face
 THROUGH_SPEEDS = (0.03, 0.02, 0.01)  # m/s: speeds at which a z return may cross the face outwards
 THROUGH_FRONT = 0.05e-3  # m in front of the face where it crosses at that speed
+REVOLUTIONS_AT_ONCE = 2  # helix revolutions of candidate joins evaluated in one call
 JOIN_JERK_STEP = 1.0  # of the axis jerk limit: the largest jerk step onto a helix
 JERK_PROBE_S = 1e-5  # s: the jerk either side of a join is the acceleration's slope over this
 GRID_ROUNDING = 1e-9  # s: an instant this close to a servo instant is read as it
@@ -121,10 +122,12 @@ class _Revolution:
     helix state there (rows x, z; columns p, v, a)): each made when it is asked for (most
     of a revolution is passed over unread)."""
 
-    __slots__ = ("ks", "t_joins", "theta_ref", "targets", "reach")
+    __slots__ = ("ks", "t_joins", "theta_ref", "targets", "probes", "reach")
 
-    def __init__(self, ks: np.ndarray, t_joins: np.ndarray, theta_ref: float, targets: np.ndarray) -> None:
+    def __init__(self, ks: np.ndarray, t_joins: np.ndarray, theta_ref: float, targets: np.ndarray,
+                 probes: np.ndarray) -> None:
         self.ks, self.t_joins, self.theta_ref, self.targets = ks, t_joins, theta_ref, targets
+        self.probes = probes  # the helix's acceleration (x, z) JERK_PROBE_S after each join
         self.reach: dict[tuple, tuple[int, int]] = {}  # ThreadCycle._may_reach's bisections
 
     def __len__(self) -> int:
@@ -248,7 +251,8 @@ class ThreadCycle:
         joins = self._past_out_of_reach(revolutions, starts) if within else itertools.chain.from_iterable(revolutions)
         for k, t_join, theta_ref, target, place in joins:
             tried = self._air_path(target, t_join, t_begin, starts, crossings, x_free, place if within else None)
-            if tried is not None and self._smooth_join(cut, theta_ref, t_join, tried):
+            if tried is not None and self._smooth_join(
+                    cut, theta_ref, t_join, tried, np.stack([target[:, 2], place[0].probes[place[1]]])):
                 break
         else:
             raise ThreadError(
@@ -520,17 +524,28 @@ class ThreadCycle:
 
     def _revolutions(self, cut: Pass, phase: float, psi_room: float, first: int, stop: int):
         """Candidate joins k in [first, stop) in order, a helix revolution at a time (the
-        latest revolution joined before psi_room: one theta_ref), each revolution's helix
-        evaluated at once: most are rejected on ruckig's fastest time alone, whole
-        revolutions at a time."""
-        spec = self.spec
-        ks = np.arange(first, stop)
-        t_joins = ks * self.period
-        theta_refs = phase + TWO_PI * np.ceil((self.theta0 + spec.spindle_speed * t_joins - psi_room - phase) / TWO_PI)
-        for lo, hi in itertools.pairwise([0, *(np.flatnonzero(np.diff(theta_refs)) + 1).tolist(), ks.size]):
-            theta_ref = float(theta_refs[lo])
-            targets = helix(spec, cut, self.psi(theta_ref, t_joins[lo:hi])).transpose(1, 2, 0)
-            yield _Revolution(ks[lo:hi], t_joins[lo:hi], theta_ref, targets)
+        latest revolution joined before psi_room: one theta_ref), the helix evaluated for
+        REVOLUTIONS_AT_ONCE of them in one call, at each join and JERK_PROBE_S later (for
+        _smooth_join): most are rejected on ruckig's fastest time alone, whole revolutions
+        at a time, and a pass joins within its first two."""
+        spec, period = self.spec, self.period
+        block = REVOLUTIONS_AT_ONCE * math.ceil(TWO_PI / (spec.spindle_speed * period)) + 2
+        lo = first
+        while lo < stop:
+            ks = np.arange(lo, min(stop, lo + block))
+            t_joins = ks * period
+            theta_refs = phase + TWO_PI * np.ceil((self.theta0 + spec.spindle_speed * t_joins - psi_room - phase)
+                                                  / TWO_PI)
+            bounds = [0, *(np.flatnonzero(np.diff(theta_refs)) + 1).tolist()]
+            if lo + ks.size == stop:
+                bounds.append(ks.size)  # else the block's last revolution goes on in the next
+            end = bounds[-1]
+            ends = helix(spec, cut, np.concatenate([self.psi(theta_refs[:end], t_joins[:end]),
+                                                    self.psi(theta_refs[:end], t_joins[:end] + JERK_PROBE_S)]))
+            targets, probes = ends[:, :end].transpose(1, 2, 0), ends[2, end:]
+            for a, b in itertools.pairwise(bounds):
+                yield _Revolution(ks[a:b], t_joins[a:b], float(theta_refs[a]), targets[a:b], probes[a:b])
+            lo += end
 
     def _past_out_of_reach(self, revolutions, starts: list[tuple[float, list[float]]]):
         """The joins of ``revolutions`` from the first of each that z may reach in time from

@@ -26,7 +26,7 @@ from cnc_planner.kinds.thread.helix import helix, helix_peaks
 from cnc_planner.kinds.thread.ramps import Ramps, z_to_speed
 from cnc_planner.kinds.thread.spec import JOINTS, TWO_PI, Pass, ThreadError, ThreadSpec, passes_of
 from cnc_planner.motion.compensation import COMPENSATION_TAIL, learned_command
-from cnc_planner.motion.jerk_profile import TrajectorySampler, axis_row, rest_row, sample_spans
+from cnc_planner.motion.jerk_profile import axis_row, rest_row, sample_spans
 
 COMPENSATION_BAND = (0.05, 0.12)  # of the servo rate (50..120 Hz at 1 ms): above the vibration,
 # below the encoder quantisation noise a wider band would feed into the command's jerk
@@ -44,11 +44,6 @@ JERK_PROBE_S = 1e-5  # s: the jerk either side of a join is the acceleration's s
 GRID_ROUNDING = 1e-9  # s: an instant this close to a servo instant is read as it
 MISS_MARGIN = 1e-6  # s: a join is passed over untried only if z's fastest time misses it by more
 # (ruckig's rounding is far below)
-
-
-def _evaluate(trajectory: Trajectory, t: np.ndarray) -> np.ndarray:
-    """(3, len(t), dofs): position, velocity, acceleration; the end state after the end."""
-    return TrajectorySampler(trajectory).sample(np.minimum(t, trajectory.duration))
 
 
 Stretch = tuple[float, Callable[[np.ndarray], np.ndarray]]  # (cycle time it begins,
@@ -202,6 +197,8 @@ class ThreadCycle:
         self.settled = settled
         self._ramps = Ramps(machine)
         self._retract_states: tuple[Trajectory | None, dict[int, list[float]]] = (None, {})  # _retracting's
+        self._within: dict[int, bool] = {}  # _within_ramps' answers by pass
+        self._reach_hint: int | None = None  # where in its revolution the last pass's first join in reach lay
         self._turn_hint: int | None = None  # servo periods after a pass's exit that x last turned
         # back after to plunge onto the next helix (_plunge's search starts there)
         self.t_lead = round(LEAD_TIME / period) * period
@@ -247,7 +244,7 @@ class ThreadCycle:
         psi_room = TWO_PI * (spec.start_z / spec.pitch - JOIN_ROOM_REVS)  # the latest join before the face
         first = max(math.ceil(starts[0][0] / period - 1e-9) + 1, math.ceil(self.settled / period - 1e-9))
         revolutions = self._revolutions(cut, phase, psi_room, first, first + math.ceil(MAX_AIR_S / period))
-        within = bool(np.all(helix_peaks(spec, cut)[1] <= self._ramps.limits("z")))  # _past_out_of_reach's premise
+        within = self._within_ramps(cut)
         joins = self._past_out_of_reach(revolutions, starts) if within else itertools.chain.from_iterable(revolutions)
         for k, t_join, theta_ref, target, place in joins:
             tried = self._air_path(target, t_join, t_begin, starts, crossings, x_free, place if within else None)
@@ -279,6 +276,13 @@ class ThreadCycle:
         self.tracks[0].append(_moving(t_out, retract))
         self.tracks[1].append(_moving(t_out, stop))
         self.cuts.append(CutTiming(cut, start, theta_ref, t_begin, t_join, t_out, retract, stop))
+
+    def _within_ramps(self, cut: Pass) -> bool:
+        """Whether z on the helix of ``cut`` stays within the ramps' limits: the premise of
+        _past_out_of_reach and _may_reach (asked once per pass, for each of its starts)."""
+        if cut.index not in self._within:
+            self._within[cut.index] = bool(np.all(helix_peaks(self.spec, cut)[1] <= self._ramps.limits("z")))
+        return self._within[cut.index]
 
     def _smooth_join(self, cut: Pass, theta_ref: float, t_join: float, tried: list[list[Stretch]],
                      after: np.ndarray | None = None) -> bool:
@@ -372,7 +376,7 @@ class ThreadCycle:
         pulled out of the stock: from then on z may run back over the thread."""
         spec, period = self.spec, self.period
         out = np.arange(math.ceil(last.retract.duration / period) + 1) * period
-        depth = spec.radial * (_evaluate(last.retract, out)[0, :, 0] - spec.origin[0] - spec.surface(spec.end_z))
+        depth = spec.radial * (_Move(0.0, axis_row(last.retract))(out)[0] - spec.origin[0] - spec.surface(spec.end_z))
         t_clear = last.t_out + float(out[np.flatnonzero(depth <= 0.0)[0]])
         t_go = math.ceil(max(t_clear, last.t_out + last.stop.duration) / period - 1e-9) * period
         return t_go, last.stop.at_time(last.stop.duration)[0][0]
@@ -557,16 +561,16 @@ class ThreadCycle:
         (the caller's condition): reaching the earlier join and following the helix on to
         the later one is a move within those limits, so ruckig's time-optimal move to the
         later one is no longer than that. So a revolution whose last join is out of reach is
-        passed over whole, and in one that is not, the first join to try is a bisection away:
-        a few ruckig queries, not one or two per servo instant of air time."""
+        passed over whole, and in one that is not, the first join to try is searched from
+        where the previous pass's lay in its revolution (a few joins away): a few ruckig
+        queries, not one or two per servo instant of air time."""
         for revolution in revolutions:
             if self._out_of_reach(revolution[-1], starts):
                 continue
-            lo, hi = 0, len(revolution) - 1  # the first join in reach lies in [lo, hi]
-            while lo < hi:
-                mid = (lo + hi) // 2
-                lo, hi = (mid + 1, hi) if self._out_of_reach(revolution[mid], starts) else (lo, mid)
-            yield from revolution.joins(lo)
+            # the first join in reach: the latest one that every join before is out of reach of
+            first = self._reach_hint = _latest(lambda j: j == 0 or self._out_of_reach(revolution[j - 1], starts),
+                                               0, len(revolution), self._reach_hint)
+            yield from revolution.joins(first)
 
     def _may_reach(self, place: tuple[_Revolution, int], t_from: float, state: list[float]) -> bool:
         """Whether z, leaving ``state`` at t_from, may reach the join at ``place`` (its

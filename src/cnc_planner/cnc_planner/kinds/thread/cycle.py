@@ -84,8 +84,11 @@ class _Move:
 
     def __call__(self, t: np.ndarray) -> np.ndarray:
         out = np.empty((3, t.size))
-        sample_spans(self.row, [self.start], [0], [t.size], t, out, held=True)
+        sample_spans(self.row[None], np.array([self.start]), _FIRST, np.array([t.size]), t, out, held=True)
         return out
+
+
+_FIRST = np.zeros(1, dtype=np.intp)  # a lone stretch's instants start at the first
 
 
 def _pieces(track: list[Stretch], t: np.ndarray) -> tuple[list[tuple], list[tuple]]:
@@ -581,7 +584,7 @@ class ThreadCycle:
         candidate join (a deep pass's search asks each of its later starts and face
         crossings about twenty joins that miss)."""
         revolution, i = place
-        key = (t_from, *state)
+        key = (t_from, id(state))  # a pass asks about the same state objects for every join
         asked, first = revolution.reach.get(key, (len(revolution), 0))
         if i < asked:
             lo, hi = i, len(revolution)  # the first join z reaches lies in [lo, hi] (hi: none)

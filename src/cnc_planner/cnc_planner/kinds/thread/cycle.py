@@ -316,7 +316,8 @@ class ThreadCycle:
         for tried in self._air_paths(target, t_join, starts, crossings, x_free, place):
             if grid is None:
                 grid = np.arange(round(t_begin / self.period), round(t_join / self.period)) * self.period
-            if not self._cuts_stock(*(track + extra for track, extra in zip(self.tracks, tried)), grid):
+            # each track's last stretch begins at t_begin (the exit, or the cycle's start)
+            if not self._cuts_stock(*(track[-1:] + extra for track, extra in zip(self.tracks, tried)), grid):
                 return tried
         return None
 

@@ -58,7 +58,7 @@ def threads(draw) -> ThreadSpec:
 
 
 def test_the_joins_found_are_the_exhaustive_searchs_on_drawn_lathes_and_threads():
-    out_of_reach, may_reach, latest = ThreadCycle._out_of_reach, ThreadCycle._may_reach, cycle._latest
+    out_of_reach, may_reach, latest = ThreadCycle._out_of_reach, ThreadCycle._may_reach, cycle.latest
     passed_over = []  # joins the bisection ruled out, over every example
     gated = []  # later starts and face crossings _may_reach ruled out
 
@@ -82,7 +82,7 @@ def test_the_joins_found_are_the_exhaustive_searchs_on_drawn_lathes_and_threads(
         with (mock.patch.object(ThreadCycle, "_past_out_of_reach",
                                 lambda self, revolutions, starts: itertools.chain.from_iterable(revolutions)),
               mock.patch.object(ThreadCycle, "_may_reach", lambda self, place, t_from, state: True),
-              mock.patch.object(cycle, "_latest", lambda holds, lo, hi, hint: latest(holds, lo, hi, None))):
+              mock.patch.object(cycle, "latest", lambda holds, lo, hi, hint: latest(holds, lo, hi, None))):
             exhaustive = planned(spec, machine)
         if isinstance(exhaustive, str):
             assert bisected == exhaustive

@@ -13,7 +13,7 @@
 
 enum { MAX_PIECES = 64 };  /* of one axis over one air path: a handful */
 
-/* One axis's pieces, as ThreadCycle._pieces gives them: (row, start, lo, hi) each, the
+/* One axis's pieces, as stretches.pieces gives them: (row, start, lo, hi) each, the
  * instants [lo, hi) one after the other over all of [0, n). */
 typedef struct {
     Py_ssize_t count;

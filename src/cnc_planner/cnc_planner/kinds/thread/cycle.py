@@ -23,10 +23,11 @@ from cnc_servo_bridge.drive import DriveModel
 
 from cnc_planner.kinds.thread._stock_kernel import inside_stock
 from cnc_planner.kinds.thread.helix import helix, helix_peaks
+from cnc_planner.kinds.thread.joins import Revolution, latest
 from cnc_planner.kinds.thread.ramps import Ramps, z_to_speed
 from cnc_planner.kinds.thread.spec import JOINTS, TWO_PI, Pass, ThreadError, ThreadSpec, passes_of
+from cnc_planner.kinds.thread.stretches import Stretch, at_rest, moving, pieces, sample_track
 from cnc_planner.motion.compensation import COMPENSATION_TAIL, learned_command
-from cnc_planner.motion.jerk_profile import axis_row, rest_row, sample_spans
 
 COMPENSATION_BAND = (0.05, 0.12)  # of the servo rate (50..120 Hz at 1 ms): above the vibration,
 # below the encoder quantisation noise a wider band would feed into the command's jerk
@@ -44,102 +45,6 @@ JERK_PROBE_S = 1e-5  # s: the jerk either side of a join is the acceleration's s
 GRID_ROUNDING = 1e-9  # s: an instant this close to a servo instant is read as it
 MISS_MARGIN = 1e-6  # s: a join is passed over untried only if z's fastest time misses it by more
 # (ruckig's rounding is far below)
-
-
-Stretch = tuple[float, Callable[[np.ndarray], np.ndarray]]  # (cycle time it begins,
-# cycle times -> (3, len(t)): one axis's position, velocity and acceleration)
-
-
-def _latest(holds: Callable[[int], bool], lo: int, hi: int, hint: int | None) -> int:
-    """The latest k in [lo, hi) at which ``holds``, given that it holds at lo and, once it
-    fails, fails for every later k: searched outwards from ``hint`` (doubling the step),
-    then by bisection, so that a hint next to the answer costs two or three calls."""
-    if hint is not None and lo < hint < hi:
-        step = 1
-        if holds(hint):
-            lo = hint
-            while lo + step < hi and holds(lo + step):
-                lo, step = lo + step, 2 * step
-            hi = min(hi, lo + step)
-        else:
-            hi = hint
-            while hi - step > lo and not holds(hi - step):
-                hi, step = hi - step, 2 * step
-            lo = max(lo, hi - step)
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        lo, hi = (mid, hi) if holds(mid) else (lo, mid)
-    return lo
-
-
-class _Move:
-    """One axis along a ruckig move (a row of TrajectorySampler.rows) from cycle time
-    ``start``, in its end state after it: a stretch the kernels evaluate with its neighbours
-    in one call (_sample, _cuts_stock)."""
-
-    __slots__ = ("start", "row")
-
-    def __init__(self, start: float, row: np.ndarray) -> None:
-        self.start, self.row = start, row
-
-    def __call__(self, t: np.ndarray) -> np.ndarray:
-        out = np.empty((3, t.size))
-        sample_spans(self.row[None], np.array([self.start]), _FIRST, np.array([t.size]), t, out, held=True)
-        return out
-
-
-_FIRST = np.zeros(1, dtype=np.intp)  # a lone stretch's instants start at the first
-
-
-def _pieces(track: list[Stretch], t: np.ndarray) -> tuple[list[tuple], list[tuple]]:
-    """The stretches of ``track`` at sorted instants t, each from its start until the next
-    begins (the first one before its start too): its moves as the kernels take them, (row,
-    start, lo, hi) for the instants [lo, hi), and the other stretches as (stretch, lo, hi)."""
-    bounds = np.searchsorted(t, [begin for begin, _ in track[1:]], side="left").tolist()
-    moves, others = [], []
-    for (_, stretch), lo, hi in zip(track, [0] + bounds, bounds + [t.size]):
-        if hi > lo:
-            if isinstance(stretch, _Move):
-                moves.append((stretch.row, stretch.start, lo, hi))
-            else:
-                others.append((stretch, lo, hi))
-    return moves, others
-
-
-def _moving(start: float, trajectory: Trajectory) -> Stretch:
-    return (start, _Move(start, axis_row(trajectory)))  # read once: sampled many times
-
-
-def _at_rest(position: float) -> Stretch:
-    """Standing at ``position`` from cycle time 0 (and before)."""
-    return (0.0, _Move(0.0, rest_row(position)))
-
-
-class _Revolution:
-    """The candidate joins onto one helix revolution, in order, as (k, t_join, theta_ref, the
-    helix state there (rows x, z; columns p, v, a)): each made when it is asked for (most
-    of a revolution is passed over unread)."""
-
-    __slots__ = ("ks", "t_joins", "theta_ref", "targets", "probes", "reach")
-
-    def __init__(self, ks: np.ndarray, t_joins: np.ndarray, theta_ref: float, targets: np.ndarray,
-                 probes: np.ndarray) -> None:
-        self.ks, self.t_joins, self.theta_ref, self.targets = ks, t_joins, theta_ref, targets
-        self.probes = probes  # the helix's acceleration (x, z) JERK_PROBE_S after each join
-        self.reach: dict[tuple, tuple[int, int]] = {}  # ThreadCycle._may_reach's bisections
-
-    def __len__(self) -> int:
-        return self.ks.size
-
-    def __getitem__(self, i: int) -> tuple[int, float, float, np.ndarray, tuple[_Revolution, int]]:
-        """The join and its place (this revolution, i)."""
-        return int(self.ks[i]), float(self.t_joins[i]), self.theta_ref, self.targets[i], (self, i)
-
-    def joins(self, lo: int = 0):
-        """The joins from the lo-th on."""
-        return (self[i] for i in range(lo, len(self)))
-
-    __iter__ = joins
 
 
 @dataclass
@@ -208,7 +113,7 @@ class ThreadCycle:
         self.x_clear = spec.origin[0] + spec.clear_radius
         self.x_air = spec.origin[0] + spec.air_radius
         self.start = start or (self.x_clear, spec.origin[1] + spec.start_z)
-        self.tracks: list[list[Stretch]] = [[_at_rest(self.start[0])], [_at_rest(self.start[1])]]
+        self.tracks: list[list[Stretch]] = [[at_rest(self.start[0])], [at_rest(self.start[1])]]
         self.cuts: list[CutTiming] = []
         for cut in passes_of(spec):
             for start in range(spec.starts):
@@ -276,8 +181,8 @@ class ThreadCycle:
         for j in range(2):
             self.tracks[j] += tried[j] + [(t_join, lambda t, j=j: on_helix(t)[:, :, j])]
         t_out, retract, stop = self._exit(cut, theta_ref, t_join)
-        self.tracks[0].append(_moving(t_out, retract))
-        self.tracks[1].append(_moving(t_out, stop))
+        self.tracks[0].append(moving(t_out, retract))
+        self.tracks[1].append(moving(t_out, stop))
         self.cuts.append(CutTiming(cut, start, theta_ref, t_begin, t_join, t_out, retract, stop))
 
     def _within_ramps(self, cut: Pass) -> bool:
@@ -300,7 +205,7 @@ class ThreadCycle:
             after = helix(self.spec, cut, self.psi(theta_ref, np.array([t_join, t_join + eps])))[2]
         for j, axis in enumerate(JOINTS):
             begin, last = tried[j][-1]  # the stretch onto the join holds both instants, if it began by then
-            a = (last(before) if begin <= before[0] else self._sample(self.tracks[j] + tried[j], before))[2]
+            a = (last(before) if begin <= before[0] else sample_track(self.tracks[j] + tried[j], before))[2]
             step = (after[1, j] - after[0, j]) / eps - (a[1] - a[0]) / eps
             if abs(step) > JOIN_JERK_STEP * self.machine.axis(axis).max_jerk:
                 return False
@@ -308,7 +213,7 @@ class ThreadCycle:
 
     def _air_path(self, target: np.ndarray, t_join: float, t_begin: float, starts: list[tuple[float, list[float]]],
                   crossings: list[tuple[float, list[float], Trajectory]], x_free: float,
-                  place: tuple[_Revolution, int] | None = None) -> list[list[Stretch]] | None:
+                  place: tuple[Revolution, int] | None = None) -> list[list[Stretch]] | None:
         """The first of _air_paths onto ``target`` at t_join that keeps the tool out of the
         stock from t_begin on, or None (the grid is built for the first path found: most
         candidate joins find none)."""
@@ -334,7 +239,7 @@ class ThreadCycle:
         if home is not None:
             t_home = last.t_out + math.ceil(home.duration / period - 1e-9) * period
             down = self._plunge([self.x_clear, 0.0, 0.0], t_home, last.t_out)
-            straight = _moving(last.t_out, home)
+            straight = moving(last.t_out, home)
             grid = np.arange(round(last.t_out / period), round(t_home / period) + 1) * period
             if down is not None and not self._cuts_stock(self.tracks[0] + [down], self.tracks[1][:-1] + [straight],
                                                          grid):
@@ -344,10 +249,10 @@ class ThreadCycle:
                 return t_home
         last.retract = self._ramps.reach("x", [float(q[0]) for q in last.retract.at_time(0.0)],
                                          [self.x_clear, 0.0, 0.0])
-        self.tracks[0][-1] = _moving(last.t_out, last.retract)
+        self.tracks[0][-1] = moving(last.t_out, last.retract)
         t_go, z_from = self._at_rest_clear(last)
         home = self._ramps.reach("z", [z_from, 0.0, 0.0], end)
-        self.tracks[1].append(_moving(t_go, home))
+        self.tracks[1].append(moving(t_go, home))
         t_done = max(last.t_end, t_go + home.duration)
         last.t_done = min(last.t_end, t_go)  # over once z heads back, x maybe still on its way out
         return t_done
@@ -356,7 +261,7 @@ class ThreadCycle:
         """Whether the tip, on the tracks x and z at instants t, is ever inside the stock over
         the thread: compiled (_stock_kernel.c) where both tracks are ruckig moves there, as
         they are on every air path; else _cuts_stock_sampled."""
-        (x_moves, x_others), (z_moves, z_others) = _pieces(x, t), _pieces(z, t)
+        (x_moves, x_others), (z_moves, z_others) = pieces(x, t), pieces(z, t)
         if x_others or z_others or not t.size:
             return self._cuts_stock_sampled(x, z, t)
         spec = self.spec
@@ -368,11 +273,11 @@ class ThreadCycle:
         """_cuts_stock in numpy, on the tracks sampled (x only where z is over the stock)."""
         spec, s = self.spec, self.spec.direction
         x0, z0 = spec.origin
-        z_at = self._sample(z, t)[0]
+        z_at = sample_track(z, t)[0]
         over_stock = (s * (z_at - z0) >= 0.0) & (s * (z_at - z0) <= s * spec.end_z)
         if not over_stock.any():
             return False
-        depth = spec.radial * (self._sample(x, t[over_stock])[0] - x0 - spec.surface(z_at[over_stock] - z0))
+        depth = spec.radial * (sample_track(x, t[over_stock])[0] - x0 - spec.surface(z_at[over_stock] - z0))
         return bool(np.any(depth > 0.0))
 
     def _at_rest_clear(self, last: CutTiming) -> tuple[float, float]:
@@ -380,14 +285,14 @@ class ThreadCycle:
         pulled out of the stock: from then on z may run back over the thread."""
         spec, period = self.spec, self.period
         out = np.arange(math.ceil(last.retract.duration / period) + 1) * period
-        depth = spec.radial * (_Move(0.0, axis_row(last.retract))(out)[0] - spec.origin[0] - spec.surface(spec.end_z))
+        depth = spec.radial * (moving(0.0, last.retract)[1](out)[0] - spec.origin[0] - spec.surface(spec.end_z))
         t_clear = last.t_out + float(out[np.flatnonzero(depth <= 0.0)[0]])
         t_go = math.ceil(max(t_clear, last.t_out + last.stop.duration) / period - 1e-9) * period
         return t_go, last.stop.at_time(last.stop.duration)[0][0]
 
     def _air_paths(self, target: np.ndarray, t_join: float, starts: list[tuple[float, list[float]]],
                    crossings: list[tuple[float, list[float], Trajectory]], x_free: float,
-                   place: tuple[_Revolution, int] | None = None):
+                   place: tuple[Revolution, int] | None = None):
         """The x plunge and z returns that reach the helix state ``target`` (rows x, z)
         exactly at t_join, best first: z from each of ``starts`` (time, state) that can,
         stretched to the time there is; then, from the last (at rest), z turning at rest
@@ -416,7 +321,7 @@ class ThreadCycle:
                 continue
             if plunge() is None:
                 return
-            yield [[plunge()], [_moving(t_leave, back)]]
+            yield [[plunge()], [moving(t_leave, back)]]
             late = (t_go, z_state, fastest)
         if self.cuts:
             for z in self._through_face(starts[0][0], crossings, z_target, t_join, place):
@@ -442,7 +347,7 @@ class ThreadCycle:
                 continue
             if plunge() is None:
                 return
-            yield [[plunge()], [_moving(t_leave, there), _moving(t_turn, onto)]]
+            yield [[plunge()], [moving(t_leave, there), moving(t_turn, onto)]]
 
     def _face_crossings(self, start: tuple[float, list[float]]) -> list[tuple[float, list[float], Trajectory]]:
         """(cycle time, z state, move there) at which z, from the helix's exit ``start``,
@@ -459,7 +364,7 @@ class ThreadCycle:
         return crossings
 
     def _through_face(self, t_go: float, crossings: list[tuple[float, list[float], Trajectory]],
-                      z_target: list[float], t_join: float, place: tuple[_Revolution, int] | None = None):
+                      z_target: list[float], t_join: float, place: tuple[Revolution, int] | None = None):
         """z returns from the helix's exit (left at t_go) that cross the face as soon as they
         can (``crossings``) and turn in front of it onto the join at t_join: the longest z can
         spend clear of the face, for x to plunge on the deepest passes."""
@@ -469,7 +374,7 @@ class ThreadCycle:
             onto = self._ramps.reach("z", face, z_target, duration=t_join - t_face)
             if onto is None or abs(onto.duration - (t_join - t_face)) > 1e-9:
                 continue
-            yield [_moving(t_go, there), _moving(t_face, onto)]
+            yield [moving(t_go, there), moving(t_face, onto)]
 
     def _plunge(self, x_target: list[float], t_join: float, x_free: float) -> Stretch | None:
         """x onto the helix state x_target at t_join. The first pass plunges from rest at
@@ -481,7 +386,7 @@ class ThreadCycle:
             plunge = self._ramps.reach("x", [self.start[0], 0.0, 0.0], x_target)
             if plunge is None or t_join - plunge.duration < x_free - 1e-12:
                 return None
-            return _moving(t_join - plunge.duration, plunge)
+            return moving(t_join - plunge.duration, plunge)
         last = self.cuts[-1]
 
         def fastest(k: int) -> float:
@@ -499,12 +404,12 @@ class ThreadCycle:
         hint = self._turn_hint
         if n < 1 or not (hint is not None and 1 < hint < n and arrives(hint)) and not arrives(1):
             return None
-        turn = self._turn_hint = _latest(arrives, 1, n, hint)
+        turn = self._turn_hint = latest(arrives, 1, n, hint)
         t_turn = last.t_out + turn * period
         plunge = self._ramps.reach("x", self._retracting(turn), x_target, duration=t_join - t_turn)
         if plunge is None or abs(plunge.duration - (t_join - t_turn)) > 1e-9:
             return None
-        return _moving(t_turn, plunge)
+        return moving(t_turn, plunge)
 
     def _retracting(self, k: int) -> list[float]:
         """x's state (p, v, a) k servo periods after the last pass's exit, on its retract:
@@ -552,7 +457,7 @@ class ThreadCycle:
                                                     self.psi(theta_refs[:end], t_joins[:end] + JERK_PROBE_S)]))
             targets, probes = ends[:, :end].transpose(1, 2, 0), ends[2, end:]
             for a, b in itertools.pairwise(bounds):
-                yield _Revolution(ks[a:b], t_joins[a:b], float(theta_refs[a]), targets[a:b], probes[a:b])
+                yield Revolution(ks[a:b], t_joins[a:b], float(theta_refs[a]), targets[a:b], probes[a:b])
             lo += end
 
     def _past_out_of_reach(self, revolutions, starts: list[tuple[float, list[float]]]):
@@ -572,11 +477,11 @@ class ThreadCycle:
             if self._out_of_reach(revolution[-1], starts):
                 continue
             # the first join in reach: the latest one that every join before is out of reach of
-            first = self._reach_hint = _latest(lambda j: j == 0 or self._out_of_reach(revolution[j - 1], starts),
+            first = self._reach_hint = latest(lambda j: j == 0 or self._out_of_reach(revolution[j - 1], starts),
                                                0, len(revolution), self._reach_hint)
             yield from revolution.joins(first)
 
-    def _may_reach(self, place: tuple[_Revolution, int], t_from: float, state: list[float]) -> bool:
+    def _may_reach(self, place: tuple[Revolution, int], t_from: float, state: list[float]) -> bool:
         """Whether z, leaving ``state`` at t_from, may reach the join at ``place`` (its
         revolution, its index there) in time: False only where z's fastest time misses it by
         MISS_MARGIN (_out_of_reach). Those joins are the revolution's first ones up to the
@@ -618,22 +523,9 @@ class ThreadCycle:
         stop = z_to_speed(self.machine, state[1], 0.0)
         return t_out, retract, stop
 
-    @staticmethod
-    def _sample(track: list[Stretch], t: np.ndarray) -> np.ndarray:
-        """(3, len(t)) of one axis at sorted t: each stretch from its start until the next
-        begins (the first one before its start too)."""
-        out = np.empty((3, t.size))
-        moves, others = _pieces(track, t)
-        for stretch, lo, hi in others:
-            out[:, lo:hi] = stretch(t[lo:hi])
-        if moves:
-            rows, starts, lo, hi = zip(*moves)
-            sample_spans(np.stack(rows), starts, lo, hi, t, out, held=True)
-        return out
-
     def ideal(self, t: np.ndarray) -> np.ndarray:
         """(3, len(t), 2): the motion itself (what the feedback should do)."""
-        return np.stack([self._sample(track, t) for track in self.tracks], 2)
+        return np.stack([sample_track(track, t) for track in self.tracks], 2)
 
     def _compensate(self, drive: DriveModel) -> None:
         """The command on the servo grid (the ideal motion plus the learned correction),

@@ -41,18 +41,20 @@ def test_bulk_sampling_equals_at_time_with_and_without_brakes():
     assert braked > 100  # the brake pre-trajectory was exercised
 
 
-def test_one_call_over_many_pieces_equals_each_sampler_bit_for_bit():
-    """sample_spans over many pieces at once (as a timeline samples its ruckig pieces)
-    gives exactly each dof's own TrajectorySampler values at its local instants (plan time
-    minus the piece's start), with and without brakes, into strided outputs as a plan's
-    columns are."""
-    rows, starts, lo, hi, expected, ts = [], [], [], [], [], []
+def pieces(seed: int, count: int, stretch: float, local):
+    """Every dof of random trajectories as sample_spans' pieces, piece k starting at a plan
+    time that does not round trip through the subtraction, 40 instants each from before its
+    start to ``stretch`` times its duration: (rows, starts, lo, hi, instants) and each
+    dof's TrajectorySampler values at local(plan time - start, duration), and the
+    trajectories' final states."""
+    rows, starts, lo, hi, expected, ts, ends = [], [], [], [], [], [], []
     n = 0
-    for k, trajectory in enumerate(random_trajectories(300, seed=11)):
+    for k, trajectory in enumerate(random_trajectories(count, seed=seed)):
         sampler = TrajectorySampler(trajectory)
-        start = 0.37 * k + 1e-3 / 3  # plan times that do not round trip through the subtraction
-        t = start + np.linspace(-0.01, 1.1 * trajectory.duration, 40)
-        values = sampler.sample(t - start)
+        start = 0.37 * k + 1e-3 / 3
+        t = start + np.linspace(-0.01, stretch * trajectory.duration + 0.01, 40)
+        values = sampler.sample(local(t - start, sampler.duration))
+        end = trajectory.at_time(sampler.duration)
         for dof, row in enumerate(sampler.rows):
             ts.append(t)
             rows.append(row)
@@ -60,11 +62,21 @@ def test_one_call_over_many_pieces_equals_each_sampler_bit_for_bit():
             lo.append(n)
             hi.append(n + len(t))
             expected.append(values[:, :, dof])
+            ends.append([q[dof] for q in end])
             n += len(t)
-    plan = np.zeros((3, n, 2))  # the second column stays untouched
-    sample_spans(np.array(rows), np.array(starts), np.array(lo), np.array(hi), np.concatenate(ts),
-                 (plan[0, :, 0], plan[1, :, 0], plan[2, :, 0]))
-    assert np.array_equal(plan[:, :, 0], np.concatenate(expected, axis=1))
+    args = np.array(rows), np.array(starts), np.array(lo), np.array(hi), np.concatenate(ts)
+    return args, np.concatenate(expected, axis=1), np.array(ends)
+
+
+def test_one_call_over_many_pieces_equals_each_sampler_bit_for_bit():
+    """sample_spans over many pieces at once (as a timeline samples its ruckig pieces)
+    gives exactly each dof's own TrajectorySampler values at its local instants (plan time
+    minus the piece's start), with and without brakes, into strided outputs as a plan's
+    columns are."""
+    args, expected, _ = pieces(11, 300, 1.1, lambda t, duration: t)
+    plan = np.zeros((3, expected.shape[1], 2))  # the second column stays untouched
+    sample_spans(*args, (plan[0, :, 0], plan[1, :, 0], plan[2, :, 0]))
+    assert np.array_equal(plan[:, :, 0], expected)
     assert not plan[:, :, 1].any()
 
 
@@ -72,28 +84,12 @@ def test_held_pieces_equal_sampling_at_the_end_after_it_bit_for_bit():
     """held=True (the thread cycle's stretches: an axis at rest in its end state after a
     move) gives each dof's sampler values at np.minimum(local time, duration) exactly; past
     the end of a move that ends moving it is not the unheld continuation."""
-    rows, starts, lo, hi, expected, ts = [], [], [], [], [], []
-    n, moving = 0, 0
-    for k, trajectory in enumerate(random_trajectories(200, seed=13)):
-        sampler = TrajectorySampler(trajectory)
-        start = 0.29 * k + 1e-3 / 7
-        t = start + np.linspace(-0.01, 1.5 * trajectory.duration + 0.01, 40)
-        values = sampler.sample(np.minimum(t - start, sampler.duration))
-        for dof, row in enumerate(sampler.rows):
-            ts.append(t)
-            rows.append(row)
-            starts.append(start)
-            lo.append(n)
-            hi.append(n + len(t))
-            expected.append(values[:, :, dof])
-            n += len(t)
-            moving += abs(trajectory.at_time(sampler.duration)[1][dof]) > 1e-6
-    held, unheld = np.zeros((3, n)), np.zeros((3, n))
-    args = np.array(rows), np.array(starts), np.array(lo), np.array(hi), np.concatenate(ts)
+    args, expected, ends = pieces(13, 200, 1.5, np.minimum)
+    held, unheld = np.zeros_like(expected), np.zeros_like(expected)
     sample_spans(*args, held, held=True)
     sample_spans(*args, unheld)
-    assert np.array_equal(held, np.concatenate(expected, axis=1))
-    assert moving > 20 and not np.array_equal(held, unheld)
+    assert np.array_equal(held, expected)
+    assert np.sum(np.abs(ends[:, 1]) > 1e-6) > 20 and not np.array_equal(held, unheld)
 
 
 def test_a_one_dof_row_is_the_samplers_and_several_dofs_have_none():

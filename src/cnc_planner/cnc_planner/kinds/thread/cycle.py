@@ -156,8 +156,8 @@ class ThreadCycle:
         joins = self._past_out_of_reach(revolutions, starts) if within else itertools.chain.from_iterable(revolutions)
         for k, t_join, theta_ref, target, place in joins:
             tried = self._air_path(target, t_join, t_begin, starts, crossings, x_free, place if within else None)
-            if tried is not None and self._smooth_join(
-                    cut, theta_ref, t_join, tried, np.stack([target[:, 2], place[0].probes[place[1]]])):
+            if tried is not None and self._smooth_join(t_join, tried,
+                                                       np.stack([target[:, 2], place[0].probes[place[1]]])):
                 break
         else:
             raise ThreadError(
@@ -173,8 +173,7 @@ class ThreadCycle:
             late_targets, probes = ends[:, :t_lates.size].transpose(1, 2, 0), ends[2, t_lates.size:]
             for t_late, late_target, probe in zip(t_lates.tolist(), late_targets, probes):
                 late = self._air_path(late_target, t_late, t_begin, starts, crossings, x_free)
-                if late is not None and self._smooth_join(cut, theta_ref, t_late, late,
-                                                          np.stack([late_target[:, 2], probe])):
+                if late is not None and self._smooth_join(t_late, late, np.stack([late_target[:, 2], probe])):
                     t_join, tried = t_late, late
                     break
         on_helix = self._on_helix(cut, theta_ref)
@@ -192,17 +191,14 @@ class ThreadCycle:
             self._within[cut.index] = bool(np.all(helix_peaks(self.spec, cut)[1] <= self._ramps.limits("z")))
         return self._within[cut.index]
 
-    def _smooth_join(self, cut: Pass, theta_ref: float, t_join: float, tried: list[list[Stretch]],
-                     after: np.ndarray | None = None) -> bool:
+    def _smooth_join(self, t_join: float, tried: list[list[Stretch]], after: np.ndarray) -> bool:
         """Whether the air path's jerk steps onto the helix by at most JOIN_JERK_STEP of
         each axis's limit: the compensated command leads a jerk step with a spike that
         grows with it (the ramps end at their share of the limit, a fast vibration runs
         near the limit, and they may meet with opposite signs). ``after``: the helix's
-        acceleration at t_join and JERK_PROBE_S later (2 instants, x z), if known."""
+        acceleration at t_join and JERK_PROBE_S later (2 instants, x z)."""
         eps = JERK_PROBE_S
         before = np.array([t_join - 2 * eps, t_join - eps])
-        if after is None:
-            after = helix(self.spec, cut, self.psi(theta_ref, np.array([t_join, t_join + eps])))[2]
         for j, axis in enumerate(JOINTS):
             begin, last = tried[j][-1]  # the stretch onto the join holds both instants, if it began by then
             a = (last(before) if begin <= before[0] else sample_track(self.tracks[j] + tried[j], before))[2]
@@ -492,12 +488,10 @@ class ThreadCycle:
         revolution, i = place
         key = (t_from, id(state))  # a pass asks about the same state objects for every join
         asked, first = revolution.reach.get(key, (len(revolution), 0))
-        if i < asked:
-            lo, hi = i, len(revolution)  # the first join z reaches lies in [lo, hi] (hi: none)
-            while lo < hi:
-                mid = (lo + hi) // 2
-                lo, hi = (mid + 1, hi) if self._out_of_reach(revolution[mid], [(t_from, state)]) else (lo, mid)
-            asked, first = revolution.reach[key] = (i, lo)
+        if i < asked:  # the first join z reaches from i on (len: none), as _past_out_of_reach's
+            first = latest(lambda j: j == i or self._out_of_reach(revolution[j - 1], [(t_from, state)]),
+                           i, len(revolution) + 1, None)
+            revolution.reach[key] = (i, first)
         return i >= first
 
     def _out_of_reach(self, join: tuple, starts: list[tuple[float, list[float]]]) -> bool:

@@ -23,6 +23,7 @@ from cnc_planner.motion._sample_kernel import spans as _spans
 # p, v, a, j (8 each), the duration, the brake's duration and second phase's start, its
 # p, v, a, j (2 each).
 ROW_LENGTH = 58
+PHASE_POSITIONS = slice(7 + 8, 7 + 8 + 8)  # p in a row: after t_sum and start
 
 
 def _row(profile, duration: float) -> list[float]:
@@ -47,7 +48,7 @@ def rest_row(position: float) -> np.ndarray:
     """A row that stands at ``position`` (a move of no duration: every phase starts there at
     rest): sampled, exactly position, 0 and 0 at every instant."""
     row = np.zeros(ROW_LENGTH)
-    row[15:23] = position  # the phases' start positions
+    row[PHASE_POSITIONS] = position
     return row
 
 
@@ -70,7 +71,6 @@ class TrajectorySampler:
             sample_spans(self._table[dof:dof + 1], np.zeros(1), np.zeros(1, np.intp), np.full(1, len(t)), t,
                          (out[0, :, dof], out[1, :, dof], out[2, :, dof]))
         return out
-
 
 
 def sample_spans(rows: np.ndarray, starts: np.ndarray, lo: np.ndarray, hi: np.ndarray, ts: np.ndarray,

@@ -18,7 +18,7 @@ from cnc_msgs_py.machine import load_machine
 from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.units import mm
 from cnc_planner.motion.builder import PlanBuilder
-from cnc_planner.motion.jerk_profile import ROW_LENGTH
+from cnc_planner.motion.jerk_profile import ROW_LENGTH, rest_row
 from cnc_planner.planning import plan_job
 from cnc_planner.kinds.thread import cycle
 from cnc_planner.kinds.thread._stock_kernel import inside_stock
@@ -271,7 +271,7 @@ def test_a_pass_whose_exit_time_divides_to_just_below_its_servo_instant_is_joine
     assert report["chips_broken"] and report["full_depth"] and report["helix_residual_mm"] < 0.01
 
 
-def test_the_stock_kernel_refuses_pieces_that_leave_instants_uncovered():
+def test_the_stock_kernel_judges_a_held_tip_and_refuses_pieces_that_leave_instants_uncovered():
     row = np.zeros(ROW_LENGTH)
     with pytest.raises(ValueError, match="x_pieces: the pieces end at instant 3 of 4"):
         inside_stock([(row, 0.0, 0, 4)], [(row, 0.0, 0, 3)], np.zeros(4), 0.0, 0.0, -1.0, 0.02, -1.0, 0.006, 0.0)
@@ -280,6 +280,12 @@ def test_the_stock_kernel_refuses_pieces_that_leave_instants_uncovered():
                      -1.0, 0.006, 0.0)
     with pytest.raises(ValueError, match="x_pieces: piece 0's row is not 58 contiguous values"):
         inside_stock([(row, 0.0, 0, 4)], [(row[:57], 0.0, 0, 4)], np.zeros(4), 0.0, 0.0, -1.0, 0.02, -1.0, 0.006, 0.0)
+    with pytest.raises(ValueError, match="ts: expected one dimension"):
+        inside_stock([(row, 0.0, 0, 4)], [(row, 0.0, 0, 4)], np.zeros((2, 2)), 0.0, 0.0, -1.0, 0.02, -1.0, 0.006, 0.0)
+    # a tip held at x 5.9 mm, z -1 mm over a 20 mm external thread: inside a 6 mm stock, not a 5.8 mm one
+    z, x = rest_row(-1e-3), rest_row(5.9e-3)
+    assert inside_stock([(z, 0.0, 0, 4)], [(x, 0.0, 0, 4)], np.zeros(4), 0.0, 0.0, -1.0, 0.02, -1.0, 0.006, 0.0)
+    assert not inside_stock([(z, 0.0, 0, 4)], [(x, 0.0, 0, 4)], np.zeros(4), 0.0, 0.0, -1.0, 0.02, -1.0, 0.0058, 0.0)
 
 
 def test_internal_two_start_thread():

@@ -86,7 +86,7 @@ static PyObject *inside_stock_py(PyObject *self, PyObject *args)
     PyObject *z_seq, *x_seq, *ts_obj;
     double z0, x0, s, s_end, radial, major, slope;
     Py_buffer ts;
-    Pieces z, x;
+    Pieces z = {.count = 0}, x = {.count = 0};  /* released below, taken or not */
     (void)self;
     if (!PyArg_ParseTuple(args, "OOOddddddd:inside_stock", &z_seq, &x_seq, &ts_obj, &z0, &x0, &s, &s_end, &radial,
                           &major, &slope))

@@ -32,9 +32,11 @@ def test_a_job_runs_in_real_time_mode(tmp_path):
 
 def _tool_path(k: int, points: int) -> dict:
     """Path job k: a 0.5 mm zigzag of ``points`` points, shifted by k so that no two are alike.
-    Planning a path takes time in proportion to its points (one segment, however long); the
-    zigzag is short enough that 8000 points (the most two rounds reach) stay under the 600 s
-    a path may last (about 52 s per 1000 points at 900 mm/min)."""
+    Planning a path takes longer the more points it has (one segment, however long; faster
+    than in proportion here: the zigzag retraces its 50 mm strip every 1000 points, and the
+    commanded path is checked against every layer near it); the zigzag is short enough that
+    8000 points (the most two rounds reach) stay under the 600 s a path may last (about 52 s
+    per 1000 points at 900 mm/min)."""
     return {"schema": "cnc_job/1", "job_id": f"rt-path-{k}", "kind": "path", "machine": "mill3",
             "spindle_rpm": 3000, "tool": {"length": 0.0, "diameter": 6.0},
             "path": {"points": [[0.5 * (i % 2) + 0.01 * k, 0.05 * (i % 1000), -1.0] for i in range(points)],
@@ -50,7 +52,9 @@ def test_planning_the_next_job_does_not_starve_the_running_one(tmp_path):
     and while a pair plans faster than that the next one has longer paths."""
     lookahead_ns = Settings().planning_lookahead_ns
     running = {"schema": "cnc_job/1", "job_id": "rt-run", "kind": "move", "machine": "mill3",
-               "move": [{"rapid": {"x": 20.0}}, {"linear": {"x": 0.0}, "feed": 20}]}  # 60 s, canceled
+               "move": [{"rapid": {"x": 20.0}}, {"linear": {"x": 0.0}, "feed": 10}]}  # 120 s, canceled
+    # (long enough that the pairs plan beside it on a loaded host: under make stress a pair
+    # of 8000-point paths once took 78 s, longer than the 60 s this job ran before)
     ids: list[str] = []
 
     def answer(job_id: str) -> dict | None:

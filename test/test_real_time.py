@@ -33,8 +33,9 @@ def test_a_job_runs_in_real_time_mode(tmp_path):
 def _tool_path(k: int, points: int) -> dict:
     """Path job k: a 0.5 mm zigzag of ``points`` points, shifted by k so that no two are alike.
     Planning a path takes longer the more points it has (one segment, however long; faster
-    than in proportion here: the zigzag retraces its 50 mm strip every 1000 points, and the
-    commanded path is checked against every layer near it); the zigzag is short enough that
+    than in proportion: the reference traverse masks the whole servo grid per stretch, and
+    this zigzag retraces its 50 mm strip every 1000 points, its commanded path checked
+    against every layer near it); the zigzag is short enough that
     8000 points (the most two rounds reach) stay under the 600 s a path may last (about 52 s
     per 1000 points at 900 mm/min)."""
     return {"schema": "cnc_job/1", "job_id": f"rt-path-{k}", "kind": "path", "machine": "mill3",

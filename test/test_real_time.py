@@ -35,9 +35,9 @@ def _tool_path(k: int, points: int) -> dict:
     Planning a path takes longer the more points it has (one segment, however long; faster
     than in proportion: the reference traverse masks the whole servo grid per stretch, and
     this zigzag retraces its 50 mm strip every 1000 points, its commanded path checked
-    against every layer near it); the zigzag is short enough that
-    8000 points (the most two rounds reach) stay under the 600 s a path may last (about 52 s
-    per 1000 points at 900 mm/min)."""
+    against every layer near it); the zigzag is short enough that 8000 points (the most two
+    rounds reach) stay under the 600 s a path may last (about 52 s per 1000 points at 900
+    mm/min)."""
     return {"schema": "cnc_job/1", "job_id": f"rt-path-{k}", "kind": "path", "machine": "mill3",
             "spindle_rpm": 3000, "tool": {"length": 0.0, "diameter": 6.0},
             "path": {"points": [[0.5 * (i % 2) + 0.01 * k, 0.05 * (i % 1000), -1.0] for i in range(points)],

@@ -172,9 +172,9 @@ def _reference(stretches: list, path: SampledPath, joints: list[str], period: fl
     p = np.where((t < 0)[:, None], first, last)
     v, a = np.zeros_like(p), np.zeros_like(p)
     t0 = 0.0
-    for stretch in stretches:
-        inside = (t >= t0) & (t < t0 + stretch.duration)
-        if inside.any():
-            p[inside], v[inside], a[inside] = stretch.sample_all(t[inside] - t0)
+    for stretch in stretches:  # t is sorted: its instants in [t0, t0 + duration) are a range
+        lo, hi = np.searchsorted(t, [t0, t0 + stretch.duration], side="left").tolist()
+        if hi > lo:
+            p[lo:hi], v[lo:hi], a[lo:hi] = stretch.sample_all(t[lo:hi] - t0)
         t0 += stretch.duration
     return p, v, a, lead, motion

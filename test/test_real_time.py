@@ -30,14 +30,15 @@ def test_a_job_runs_in_real_time_mode(tmp_path):
     assert not run.alarms
 
 
+MOST_POINTS = 8000  # a path's points at most: 8000 take about 420 s, under the 600 s a path may last
+
+
 def _tool_path(k: int, points: int) -> dict:
     """Path job k: a 0.5 mm zigzag of ``points`` points, shifted by k so that no two are alike.
     Planning a path takes longer the more points it has (one segment, however long; faster
-    than in proportion: the reference traverse masks the whole servo grid per stretch, and
-    this zigzag retraces its 50 mm strip every 1000 points, its commanded path checked
-    against every layer near it); the zigzag is short enough that 8000 points (the most two
-    rounds reach) stay under the 600 s a path may last (about 52 s per 1000 points at 900
-    mm/min)."""
+    than in proportion: this zigzag retraces its 50 mm strip every 1000 points, its
+    commanded path checked against every layer near it); about 52 s per 1000 points at
+    900 mm/min."""
     return {"schema": "cnc_job/1", "job_id": f"rt-path-{k}", "kind": "path", "machine": "mill3",
             "spindle_rpm": 3000, "tool": {"length": 0.0, "diameter": 6.0},
             "path": {"points": [[0.5 * (i % 2) + 0.01 * k, 0.05 * (i % 1000), -1.0] for i in range(points)],
@@ -45,17 +46,18 @@ def _tool_path(k: int, points: int) -> dict:
 
 
 def test_planning_the_next_job_does_not_starve_the_running_one(tmp_path):
-    """A goal whose planning lasts more than twice as long as the setpoints buffered while
-    goals are planned (1 s) arrives while a job runs in real time: planned in the stream's way
-    it would run the stream dry (it does with the planner's intake thread taken out); planned
-    beside it, it does not. That premise is built, not assumed: goals come in pairs, the
-    second's planning measured on the machine's clock from the first's answer to its own,
-    and while a pair plans faster than that the next one has longer paths."""
+    """Goals whose planning lasts more than twice as long as the setpoints buffered while
+    goals are planned (2 s) arrive while a job runs in real time: planned in the stream's way
+    they would run the stream dry (they do with the planner's intake thread taken out);
+    planned beside it, they do not. That premise is built, not assumed: goals come in
+    groups, planned one after the other, their planning measured on the machine's clock from
+    the first's answer to the last's, and while a group plans faster than that the next one
+    has longer paths, or more of them once the paths have MOST_POINTS."""
     lookahead_ns = Settings().planning_lookahead_ns
     running = {"schema": "cnc_job/1", "job_id": "rt-run", "kind": "move", "machine": "mill3",
                "move": [{"rapid": {"x": 20.0}}, {"linear": {"x": 0.0}, "feed": 10}]}  # 120 s, canceled
-    # (long enough that the pairs plan beside it on a loaded host: under make stress a pair
-    # of 8000-point paths once took 78 s, longer than the 60 s this job ran before)
+    # (long enough that the groups plan beside it on a loaded host: under make stress a pair
+    # of 8000-point paths once took 78 s)
     ids: list[str] = []
 
     def answer(job_id: str) -> dict | None:
@@ -65,21 +67,25 @@ def test_planning_the_next_job_does_not_starve_the_running_one(tmp_path):
         session.submit(json.dumps(running))
         session.spin_until(lambda: any(s["job_id"] == "rt-run" and s["state"] == "running"
                                        for s in session.recorder.statuses), 30, "the first job did not start")
-        points, planning_ns = 1000, 0
+        points, goals, planning_ns = 1000, 2, 0
         while planning_ns <= 2 * lookahead_ns:
-            pair = [_tool_path(len(ids) + k, points) for k in range(2)]
-            pair_ids = [goal["job_id"] for goal in pair]
-            ids += pair_ids
-            for goal in pair:
+            group = [_tool_path(len(ids) + k, points) for k in range(goals)]
+            group_ids = [goal["job_id"] for goal in group]
+            ids += group_ids
+            for goal in group:
                 session.submit(json.dumps(goal))
-            session.spin_until(lambda: all(map(answer, pair_ids)), 120, "the goals were not answered")
-            first, second = map(answer, pair_ids)
-            assert first["state"] == second["state"] == "accepted", second["reason"]
-            planning_ns = second["stamp_ns"] - first["stamp_ns"]
-            for job_id in pair_ids:
+            session.spin_until(lambda: all(map(answer, group_ids)), 120, "the goals were not answered")
+            answers = list(map(answer, group_ids))
+            assert all(a["state"] == "accepted" for a in answers), [a["reason"] for a in answers]
+            planning_ns = answers[-1]["stamp_ns"] - answers[0]["stamp_ns"]
+            for job_id in group_ids:
                 session.cancel(job_id)  # only their planning matters here
-            # the next pair aimed at 3 s each: at least twice, at most 8 times the points
-            points = math.ceil(points * min(8.0, max(2.0, 3 * lookahead_ns / max(planning_ns, 1))))
+            # the next group aimed at 3 lookaheads: at least twice, at most 8 times the work
+            grow = min(8.0, max(2.0, 3 * lookahead_ns / max(planning_ns, 1)))
+            if points < MOST_POINTS:
+                points = min(MOST_POINTS, math.ceil(points * grow))
+            else:
+                goals = math.ceil((goals - 1) * grow) + 1  # the first's planning is not measured
         for job_id in ids:
             session.wait(job_id, 60)
         session.cancel("rt-run")

@@ -37,9 +37,10 @@ class Settings:
     chunk_points: int = 100
     lookahead_ns: int = 300_000_000  # how far setpoints run ahead of the feedback; also
     # the longest a cancel waits: a stop begins where the setpoints sent so far end
-    planning_lookahead_ns: int = 1_000_000_000  # the same while a goal (or the running job's
+    planning_lookahead_ns: int = 2_000_000_000  # the same while a goal (or the running job's
     # next segment) is being planned beside the stream: planning holds the GIL, and under CPU load the stream's thread then
-    # waits for it each time it asks (0.3 s of setpoints ran dry in real time)
+    # waits for it each time it asks (0.3 s of setpoints ran dry in real time; 1 s did in 3 of
+    # 150 make stress runs, where a sleeping thread of an idle process woke up to 0.4 s late)
     start_delay_ns: int = 600_000_000  # from the feedback that starts a job to its first setpoint:
     # the idle bridge's time runs on meanwhile, so this must cover a tick slowed by a loaded CPU
     status_period_ns: int = 500_000_000  # progress updates on job_status

@@ -38,7 +38,7 @@ PARAMETERS = {
     "chunk_points": Param(100, "setpoints per joint_trajectory chunk", "points", (1, 10000), read_only=True),
     "lookahead": Param(0.3, "setpoints kept ahead of the feedback, and the longest a cancel waits", "s",
                        (0.05, 5.0)),
-    "planning_lookahead": Param(1.0, "setpoints kept ahead of the feedback while a goal is planned beside the "
+    "planning_lookahead": Param(2.0, "setpoints kept ahead of the feedback while a goal is planned beside the "
                                      "running job (planning slows the stream's thread), and the longest a "
                                      "cancel then waits", "s", (0.05, 5.0)),
     "feedback_period": Param(0.02, "wall time between reads of the latest joint_states (progress, the stream's "

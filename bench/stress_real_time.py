@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -19,6 +20,7 @@ from pathlib import Path
 from publish import write_result
 
 ROOT = Path(__file__).resolve().parents[1]
+_RAISED_AT = re.compile(r"^\S+\.py:\d+: ")  # pytest's "file.py:123: ErrorType" under a traceback
 REAL_TIME_TESTS = ["test/test_real_time.py", "test/test_node_survival.py"]
 BUSY = "import time\nend = time.monotonic() + {limit}\nwhile time.monotonic() < end:\n    pass\n"
 
@@ -54,10 +56,31 @@ class RestOfSuite:
         self.log.seek(0)
         output = self.log.read().strip().splitlines() or ["(no output)"]
         outcome = "; ".join([output[-1]] + [line for line in output if line.startswith("FAILED ")])
-        if "failed" in output[-1]:  # why, not only which: the failure report's last lines
-            start = next((k for k, line in enumerate(output) if "= FAILURES =" in line), len(output))
-            outcome += "\n" + "\n".join(output[start:start + 80])
+        if "failed" in output[-1]:
+            outcome += "\n" + failure_report(output)
         return outcome
+
+
+def failure_report(output: list[str], log_lines: int = 30) -> str:
+    """Why, not only which: from pytest's failure report, each failed test's header, its
+    error lines (E ...) and where they were raised, and the first warnings and errors of
+    each captured log (where the trouble begins; the log's tail says little)."""
+    start = next((k for k, line in enumerate(output) if "= FAILURES =" in line), None)
+    if start is None:
+        return "\n".join(output[-log_lines:])
+    kept, log_left = [], 0
+    for line in output[start:]:
+        if line.startswith("=") and "short test summary" in line:
+            break
+        if line.startswith("_") or line.startswith("E ") or _RAISED_AT.match(line):
+            kept.append(line)
+        elif line.startswith("-") and "Captured" in line:
+            kept.append(line)
+            log_left = log_lines
+        elif log_left and ("[ERROR]" in line or "[WARN]" in line):
+            kept.append(line)
+            log_left -= 1
+    return "\n".join(kept)
 
 
 def main() -> int:
@@ -84,7 +107,7 @@ def main() -> int:
             print(line, flush=True)
             lines.append(line)
             if result.returncode != 0:
-                lines.append(result.stdout[-3000:])
+                lines.append(failure_report(result.stdout.splitlines()))
     finally:
         for proc in busy:
             proc.kill()

@@ -12,7 +12,7 @@ ifeq ($(strip $(ROS_DISCOVERY_SERVER)),)
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 endif
 
-.PHONY: setup browser demo cell-demo test bench bench-peer bench-shop soak stress clean
+.PHONY: setup browser demo cell-demo test bench bench-peer bench-shop soak stress stream-lead clean
 
 # The virtual environment with everything from PyPI: all that the demos and benchmarks need.
 setup: $(STAMP)
@@ -66,6 +66,11 @@ soak: setup
 # so about 20-30 minutes.
 stress: setup
 	$(PY) bench/stress_real_time.py --runs 50
+
+# The stream's margin while long paths are planned beside a real-time job, under the same
+# load: not part of `make bench`; about 5 minutes.
+stream-lead: setup
+	$(PY) bench/stream_lead.py
 
 clean:
 	rm -rf $(VENV) runs build install log

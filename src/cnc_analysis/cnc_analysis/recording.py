@@ -55,6 +55,7 @@ class Chunk:
     end_ns: int
     points: int
     moving_at_end: bool
+    received_ns: int = 0  # bag time: when the recorder had it, on the machine's clock
 
 
 @dataclass
@@ -97,7 +98,7 @@ def read_run(bag: Path) -> Run:
     setpoints: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
     try:
         with AnyReader([bag], default_typestore=TYPESTORE) as reader:
-            for conn, _, raw in reader.messages():
+            for conn, received_ns, raw in reader.messages():
                 topic = conn.topic.rsplit("/", 1)[-1]
                 msg = reader.deserialize(raw, conn.msgtype)
                 if topic == "joint_states":
@@ -119,7 +120,8 @@ def read_run(bag: Path) -> Run:
                     if order is not None:
                         pos, vel = pos[:, order], vel[:, order]
                     setpoints.append((times, pos, vel))
-                    run.chunks.append(Chunk(int(times[0]), int(times[-1]), len(times), bool(np.any(vel[-1] != 0.0))))
+                    run.chunks.append(Chunk(int(times[0]), int(times[-1]), len(times), bool(np.any(vel[-1] != 0.0)),
+                                            received_ns))
                 elif topic == "job_goal":
                     run.goals.append(msg.data)
                 elif topic == "job_status":

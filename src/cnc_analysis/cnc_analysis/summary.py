@@ -3,7 +3,8 @@
 Cycle time runs from the first to the last motion of the linear axes on feedback;
 following error compares the setpoint executed at an instant with the encoder reading
 published for that same instant; a lost chunk is a gap in the setpoint stream while
-the axes were still moving.
+the axes were still moving; the stream's lead is how far the setpoints already received
+reached beyond the moment the next chunk arrived.
 """
 from __future__ import annotations
 
@@ -47,3 +48,15 @@ def chunks_lost(run: Run) -> int:
         if prev.moving_at_end and nxt.stamp_ns > prev.end_ns + period + period // 2:
             lost += 1
     return lost
+
+
+def stream_leads(run: Run) -> tuple[np.ndarray, np.ndarray]:
+    """When each chunk after the first arrived (s, bag time) and how far the setpoints
+    received before it still reached beyond that moment (s): the margin the stream had
+    left. A lead at or below 0 is a buffer that ran dry (or would have, moving). Every
+    chunk ends the buffer: it follows what was there or replaces it from its first stamp."""
+    if len(run.chunks) < 2:
+        return np.zeros(0), np.zeros(0)
+    received = np.array([c.received_ns for c in run.chunks], dtype=np.int64)
+    reach = np.array([c.end_ns for c in run.chunks], dtype=np.int64)
+    return received[1:] / 1e9, (reach[:-1] - received[1:]) / 1e9

@@ -55,8 +55,9 @@ class RestOfSuite:
     def _outcome(self) -> str:
         self.log.seek(0)
         output = self.log.read().strip().splitlines() or ["(no output)"]
-        outcome = "; ".join([output[-1]] + [line for line in output if line.startswith("FAILED ")])
-        if "failed" in output[-1]:
+        failed = [line for line in output if line.startswith("FAILED ")]
+        outcome = "; ".join(dict.fromkeys([output[-1]] + failed))  # each failure once
+        if failed or "failed" in output[-1]:
             outcome += "\n" + failure_report(output)
         return outcome
 

@@ -33,14 +33,16 @@ from cnc_planner.goal_ledger import GoalLedger
 PARAMETERS = {
     "machine": Param("mill3", "machine description config/machines/<name>.yaml (or a path), the one "
                               "the bridge drives", read_only=True),
-    "interpolation_period": Param(0.001, "time between setpoints (the bridge's servo_period)", "s",
-                                  (1e-4, 0.01), read_only=True),
-    "chunk_points": Param(100, "setpoints per joint_trajectory chunk", "points", (1, 10000), read_only=True),
-    "lookahead": Param(0.3, "setpoints kept ahead of the feedback, and the longest a cancel waits", "s",
-                       (0.05, 5.0)),
-    "planning_lookahead": Param(2.0, "setpoints kept ahead of the feedback while a goal is planned beside the "
-                                     "running job (planning slows the stream's thread), and the longest a "
-                                     "cancel then waits", "s", (0.05, 5.0)),
+    # the defaults are the executive's Settings: written once
+    "interpolation_period": Param(Settings.period_ns / NS, "time between setpoints (the bridge's servo_period)",
+                                  "s", (1e-4, 0.01), read_only=True),
+    "chunk_points": Param(Settings.chunk_points, "setpoints per joint_trajectory chunk", "points", (1, 10000),
+                          read_only=True),
+    "lookahead": Param(Settings.lookahead_ns / NS, "setpoints kept ahead of the feedback, and the longest a "
+                                                   "cancel waits", "s", (0.05, 5.0)),
+    "planning_lookahead": Param(Settings.planning_lookahead_ns / NS, "setpoints kept ahead of the feedback while "
+                                "a goal is planned beside the running job (planning slows the stream's thread), "
+                                "and the longest a cancel then waits", "s", (0.05, 5.0)),
     "feedback_period": Param(0.02, "wall time between reads of the latest joint_states (progress, the stream's "
                                    "top-up, the end of the job, the feedback watchdog); the bridge publishes "
                                    "them at 1 kHz, and each is only kept until the next arrives", "s",

@@ -31,17 +31,12 @@ from cnc_analysis.summary import stream_leads
 from cnc_planner.executive import Settings
 from cnc_planner.runner import Session, local_dds_env
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test"))  # the starvation test's goals
+from zigzag_paths import zigzag_path  # noqa: E402
+
 CLIMB_S = 1.0  # s after a goal arrives when the stream has reached the planning lookahead
 RUNNING = {"schema": "cnc_job/1", "job_id": "running", "kind": "move", "machine": "mill3",
            "move": [{"rapid": {"x": 20.0}}, {"linear": {"x": 0.0}, "feed": 4}]}  # 300 s
-
-
-def tool_path(k: int, points: int) -> dict:
-    """Goal k: the starvation test's zigzag (test/test_real_time.py), shifted by k."""
-    return {"schema": "cnc_job/1", "job_id": f"path-{k}", "kind": "path", "machine": "mill3",
-            "spindle_rpm": 3000, "tool": {"length": 0.0, "diameter": 6.0},
-            "path": {"points": [[0.5 * (i % 2) + 0.01 * k, 0.05 * (i % 1000), -1.0] for i in range(points)],
-                     "feed": 900, "chord_tolerance": 0.01}}
 
 
 def plan_beside(bag: Path, paths: int, points: int) -> list[tuple[float, float]]:
@@ -54,7 +49,7 @@ def plan_beside(bag: Path, paths: int, points: int) -> list[tuple[float, float]]
                            30, "the running job did not start")
         for k in range(paths):
             start = session.recorder.feedback_ns
-            session.submit(json.dumps(tool_path(k, points)))
+            session.submit(json.dumps(zigzag_path(f"path-{k}", k, points)))
             session.spin_until(lambda: any(s["job_id"] == f"path-{k}" for s in statuses), 300,
                                f"path-{k} was not answered")
             windows.append((start / 1e9, session.recorder.feedback_ns / 1e9))

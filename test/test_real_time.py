@@ -11,6 +11,7 @@ import pytest
 from cnc_planner.executive import Settings
 from cnc_planner.runner import Session
 from cnc_analysis.recording import read_run
+from zigzag_paths import MOST_POINTS, zigzag_path
 
 
 def test_a_job_runs_in_real_time_mode(tmp_path):
@@ -28,21 +29,6 @@ def test_a_job_runs_in_real_time_mode(tmp_path):
     assert final["cycle_time_s"] > 1.0  # 20 mm at 20 mm/s plus the rapid
     assert abs(run.feedback[-1, run.column("x")]) < 1e-6
     assert not run.alarms
-
-
-MOST_POINTS = 8000  # a path's points at most: 8000 take about 420 s, under the 600 s a path may last
-
-
-def _tool_path(k: int, points: int) -> dict:
-    """Path job k: a 0.5 mm zigzag of ``points`` points, shifted by k so that no two are alike.
-    Planning a path takes longer the more points it has (one segment, however long; faster
-    than in proportion: this zigzag retraces its 50 mm strip every 1000 points, its
-    commanded path checked against every layer near it); about 52 s per 1000 points at
-    900 mm/min."""
-    return {"schema": "cnc_job/1", "job_id": f"rt-path-{k}", "kind": "path", "machine": "mill3",
-            "spindle_rpm": 3000, "tool": {"length": 0.0, "diameter": 6.0},
-            "path": {"points": [[0.5 * (i % 2) + 0.01 * k, 0.05 * (i % 1000), -1.0] for i in range(points)],
-                     "feed": 900, "chord_tolerance": 0.01}}
 
 
 def test_planning_the_next_job_does_not_starve_the_running_one(tmp_path):
@@ -69,7 +55,7 @@ def test_planning_the_next_job_does_not_starve_the_running_one(tmp_path):
                                        for s in session.recorder.statuses), 30, "the first job did not start")
         points, goals, planning_ns = 1000, 2, 0
         while planning_ns <= 2 * lookahead_ns:
-            group = [_tool_path(len(ids) + k, points) for k in range(goals)]
+            group = [zigzag_path(f"rt-path-{len(ids) + k}", len(ids) + k, points) for k in range(goals)]
             group_ids = [goal["job_id"] for goal in group]
             ids += group_ids
             for goal in group:

@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -24,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from publish import write_result
-from stress_real_time import BUSY, REAL_TIME_TESTS, RestOfSuite
+from stress_real_time import stress_load
 
 from cnc_analysis.recording import read_run
 from cnc_analysis.summary import stream_leads
@@ -66,20 +65,10 @@ def main() -> int:
     parser.add_argument("--paths", type=int, default=4)
     parser.add_argument("--points", type=int, default=8000)
     args = parser.parse_args()
-    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", CNC_TEST_DOMAINS="1-100")
-    pytest = [sys.executable, "-m", "pytest", "-q", "-p", "no:warnings", "-p", "no:cacheprovider"]
-    busy = [subprocess.Popen([sys.executable, "-c", BUSY.format(limit=1800)]) for _ in range(2)]
-    rest = RestOfSuite(pytest + [f"--ignore={t}" for t in REAL_TIME_TESTS], env)
-    rest.keep_running()
-    try:
+    with stress_load(dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"), limit=1800.0):
         with tempfile.TemporaryDirectory() as tmp:
             windows = plan_beside(Path(tmp) / "bag", args.paths, args.points)
             run = read_run(Path(tmp) / "bag")
-    finally:
-        for proc in busy:
-            proc.kill()
-            proc.wait()
-        rest.stop()
     arrived, lead = stream_leads(run)
     ahead = Settings().planning_lookahead_ns / 1e9
     lines = [f"Paths of {args.points} points planned one after the other beside a 300 s real-time move on "

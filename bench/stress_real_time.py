@@ -15,6 +15,8 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from publish import write_result
@@ -22,6 +24,7 @@ from publish import write_result
 ROOT = Path(__file__).resolve().parents[1]
 _RAISED_AT = re.compile(r"^\S+\.py:\d+: ")  # pytest's "file.py:123: ErrorType" under a traceback
 REAL_TIME_TESTS = ["test/test_real_time.py", "test/test_node_survival.py"]
+PYTEST = [sys.executable, "-m", "pytest", "-q", "-p", "no:warnings", "-p", "no:cacheprovider"]
 BUSY = "import time\nend = time.monotonic() + {limit}\nwhile time.monotonic() < end:\n    pass\n"
 
 
@@ -84,6 +87,22 @@ def failure_report(output: list[str], log_lines: int = 30) -> str:
     return "\n".join(kept)
 
 
+@contextmanager
+def stress_load(env: dict[str, str], limit: float) -> Iterator[RestOfSuite]:
+    """Two busy processes and the rest of the suite (started now, in DDS domains 1-100) for
+    as long as the block runs; each stopped by its own id at the end."""
+    busy = [subprocess.Popen([sys.executable, "-c", BUSY.format(limit=limit)]) for _ in range(2)]
+    rest = RestOfSuite(PYTEST + [f"--ignore={t}" for t in REAL_TIME_TESTS], dict(env, CNC_TEST_DOMAINS="1-100"))
+    rest.keep_running()
+    try:
+        yield rest
+    finally:
+        for proc in busy:
+            proc.kill()
+            proc.wait()
+        rest.stop()
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=50)
@@ -91,16 +110,13 @@ def main() -> int:
     args = parser.parse_args()
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     # the two suites run at once: each its own DDS domains (test/conftest.py), or they hear each other
-    rest_env, real_time_env = dict(env, CNC_TEST_DOMAINS="1-100"), dict(env, CNC_TEST_DOMAINS="211-230")
-    pytest = [sys.executable, "-m", "pytest", "-q", "-p", "no:warnings", "-p", "no:cacheprovider"]
-    busy = [subprocess.Popen([sys.executable, "-c", BUSY.format(limit=args.limit)]) for _ in range(2)]
-    rest = RestOfSuite(pytest + [f"--ignore={t}" for t in REAL_TIME_TESTS], rest_env)
+    real_time_env = dict(env, CNC_TEST_DOMAINS="211-230")
     lines, failed = [], 0
-    try:
+    with stress_load(env, args.limit) as rest:
         for run in range(1, args.runs + 1):
             rest.keep_running()
             start = time.monotonic()
-            result = subprocess.run(pytest + REAL_TIME_TESTS, cwd=ROOT, env=real_time_env, capture_output=True, text=True)
+            result = subprocess.run(PYTEST + REAL_TIME_TESTS, cwd=ROOT, env=real_time_env, capture_output=True, text=True)
             tail = (result.stdout.strip().splitlines() or ["(no output)"])[-1]
             failed += result.returncode != 0
             line = (f"run {run:3d}: exit {result.returncode}  {time.monotonic() - start:6.1f} s  "
@@ -109,11 +125,6 @@ def main() -> int:
             lines.append(line)
             if result.returncode != 0:
                 lines.append(failure_report(result.stdout.splitlines()))
-    finally:
-        for proc in busy:
-            proc.kill()
-            proc.wait()
-        rest.stop()
     lines += [f"rest of suite, round {k}: {outcome}" for k, outcome in enumerate(rest.outcomes, 1)]
     summary = (f"{args.runs - failed} of {args.runs} runs passed (2 busy processes; the rest of the suite "
                f"alongside every run, restarted whenever it ended: {len(rest.outcomes)} rounds ended)")

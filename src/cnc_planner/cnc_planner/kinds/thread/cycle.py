@@ -421,12 +421,15 @@ class ThreadCycle:
     def _on_helix(self, cut: Pass, theta_ref: float) -> Callable[[np.ndarray], np.ndarray]:
         """Cycle times -> helix of the pass joined at theta_ref; x and z ask for the same
         instants one after the other, so the last answer is kept (for exactly those instants:
-        grids that differ by rounding only must not share it)."""
+        grids that differ by rounding only must not share it). It holds no reference to the
+        cycle, whose tracks hold it: a plan is freed as soon as it is dropped, not left to
+        the cyclic collector."""
         last: list[np.ndarray | None] = [None, None]  # instants, helix there
+        spec, theta0, speed = self.spec, self.theta0, self.spec.spindle_speed
 
         def on_helix(t: np.ndarray) -> np.ndarray:
             if last[0] is None or not np.array_equal(last[0], t):
-                last[:] = t.copy(), helix(self.spec, cut, self.psi(theta_ref, t))
+                last[:] = t.copy(), helix(spec, cut, theta0 + speed * t - theta_ref)  # self.psi's
             return last[1]
 
         return on_helix

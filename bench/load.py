@@ -33,6 +33,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT / "src" / p) for p in ("cnc_msgs_py", "cnc_analysis", "cnc_planner", "cnc_servo_bridge")]
 
+from cnc_msgs_py.heap import keep_freed_memory  # noqa: E402
 from cnc_msgs_py.job import job_id_of, load_job_file, parse_job  # noqa: E402
 from cnc_msgs_py.machine import load_machine  # noqa: E402
 from cnc_planner.planning import plan_job  # noqa: E402
@@ -100,6 +101,7 @@ def plan_in_segments(doc: dict) -> tuple[float, float, float]:
 def planning_rows() -> tuple[list[tuple], list[str]]:
     from soak import plate_doc  # soak imports this module
 
+    keep_freed_memory()  # the allocator as cnc-plan and the planner node set it
     notes = []
     cases = [*((name, load_job_file(JOBS / name)) for name in
                ("move_mill3.yaml", "path_mill3.yaml", "lathe_feed_vibration.yaml")),

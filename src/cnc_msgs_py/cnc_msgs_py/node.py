@@ -22,6 +22,7 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 from rclpy.utilities import remove_ros_args
 
+from .heap import keep_freed_memory
 from .machine import MachineError
 from .parameters import Param
 from .tool import tool_parser
@@ -68,6 +69,7 @@ def run_node(make: Callable[[], Node], name: str, args: list[str] | None = None,
     # interpreter happens to be: raised inside rclpy's take_message it came out as
     # "Unable to convert call argument '0' to Python object" and the stop was lost.
     rclpy.init(args=[prog, *argv], signal_handler_options=SignalHandlerOptions.NO)
+    keep_freed_memory()  # plans and drive simulations reuse freed arrays instead of faulting in fresh ones
     try:
         node = make()
     except (MachineError, ValueError) as err:

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from cnc_msgs_py.gcode.document import job_document
+from cnc_msgs_py.heap import keep_freed_memory
 from cnc_msgs_py.job import job_id_of, parse_job
 from cnc_msgs_py.machine import MachineError, load_machine
 from cnc_msgs_py.progress import Progress
@@ -154,6 +155,7 @@ def plan_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--period", type=float, default=0.001, help="interpolation period (s)")
     args = parser.parse_args(argv)
+    keep_freed_memory()  # as the planner node does: the plan's arrays reuse freed memory
     try:
         job = parse_job(job_document(args.job, args.machine))
         machine = load_machine(job.machine)

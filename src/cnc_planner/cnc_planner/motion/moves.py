@@ -21,6 +21,7 @@ from cnc_servo_bridge.stop import velocity_trajectory
 
 # Avoid zero-length divisions and ruckig's numerical floor on tiny moves.
 MIN_MOVE = 1e-9
+_FOUND = frozenset((Result.Working, Result.Finished))  # ruckig's results that hold a trajectory
 
 
 class MotionError(ValueError):
@@ -142,7 +143,7 @@ def calculate(inp: InputParameter, ruckig: Ruckig | None = None) -> Trajectory:
         result = (ruckig or Ruckig(inp.degrees_of_freedom)).calculate(inp, trajectory)
     except RuckigError as err:  # invalid input is raised, not returned
         raise MotionError(f"ruckig could not plan the move: {str(err).strip()}") from err
-    if result not in (Result.Working, Result.Finished):
+    if result not in _FOUND:
         raise MotionError(f"ruckig could not plan the move ({result.name})")
     return trajectory
 

@@ -9,7 +9,6 @@ bridge's feedback, not only the command, holds lead, depth and flank offset.
 """
 from __future__ import annotations
 
-import functools
 import itertools
 import math
 from collections.abc import Callable
@@ -208,7 +207,7 @@ class ThreadCycle:
         return True
 
     def _air_path(self, target: np.ndarray, t_join: float, t_begin: float, starts: list[tuple[float, list[float]]],
-                  crossings: list[tuple[float, list[float], Trajectory]], x_free: float,
+                  crossings: list[tuple[float, list[float], Stretch]], x_free: float,
                   place: tuple[Revolution, int] | None = None) -> list[list[Stretch]] | None:
         """The first of _air_paths onto ``target`` at t_join that keeps the tool out of the
         stock from t_begin on, or None (the grid is built for the first path found: most
@@ -287,7 +286,7 @@ class ThreadCycle:
         return t_go, last.stop.at_time(last.stop.duration)[0][0]
 
     def _air_paths(self, target: np.ndarray, t_join: float, starts: list[tuple[float, list[float]]],
-                   crossings: list[tuple[float, list[float], Trajectory]], x_free: float,
+                   crossings: list[tuple[float, list[float], Stretch]], x_free: float,
                    place: tuple[Revolution, int] | None = None):
         """The x plunge and z returns that reach the helix state ``target`` (rows x, z)
         exactly at t_join, best first: z from each of ``starts`` (time, state) that can,
@@ -297,9 +296,12 @@ class ThreadCycle:
         join: most candidate joins fail on z's fastest time alone. With the join's ``place``
         in its revolution, a later start or crossing is passed over where _may_reach rules
         it out (the first start: _past_out_of_reach did)."""
-        @functools.cache
+        plunged: list[Stretch | None] = []  # asked once, when a z return first reaches the join
+
         def plunge() -> Stretch | None:
-            return self._plunge(target[0].tolist(), t_join, x_free)
+            if not plunged:
+                plunged.append(self._plunge(target[0].tolist(), t_join, x_free))
+            return plunged[0]
 
         z_target = target[1].tolist()
         late = None
@@ -320,7 +322,7 @@ class ThreadCycle:
             yield [[plunge()], [moving(t_leave, back)]]
             late = (t_go, z_state, fastest)
         if self.cuts:
-            for z in self._through_face(starts[0][0], crossings, z_target, t_join, place):
+            for z in self._through_face(crossings, z_target, t_join, place):
                 if plunge() is None:
                     return
                 yield [[plunge()], z]
@@ -345,10 +347,10 @@ class ThreadCycle:
                 return
             yield [[plunge()], [moving(t_leave, there), moving(t_turn, onto)]]
 
-    def _face_crossings(self, start: tuple[float, list[float]]) -> list[tuple[float, list[float], Trajectory]]:
-        """(cycle time, z state, move there) at which z, from the helix's exit ``start``,
-        crosses the face as soon as it can at each of THROUGH_SPEEDS outwards: the same for
-        every candidate join of a pass."""
+    def _face_crossings(self, start: tuple[float, list[float]]) -> list[tuple[float, list[float], Stretch]]:
+        """(cycle time, z state, the stretch there) at which z, from the helix's exit
+        ``start``, crosses the face as soon as it can at each of THROUGH_SPEEDS outwards:
+        the same for every candidate join of a pass."""
         spec = self.spec
         t_go, z_state = start
         crossings = []
@@ -356,13 +358,13 @@ class ThreadCycle:
             face = [spec.origin[1] - spec.direction * THROUGH_FRONT, -spec.direction * speed, 0.0]
             there = self._ramps.reach("z", z_state, face)
             if there is not None:
-                crossings.append((t_go + there.duration, face, there))
+                crossings.append((t_go + there.duration, face, moving(t_go, there)))
         return crossings
 
-    def _through_face(self, t_go: float, crossings: list[tuple[float, list[float], Trajectory]],
-                      z_target: list[float], t_join: float, place: tuple[Revolution, int] | None = None):
-        """z returns from the helix's exit (left at t_go) that cross the face as soon as they
-        can (``crossings``) and turn in front of it onto the join at t_join: the longest z can
+    def _through_face(self, crossings: list[tuple[float, list[float], Stretch]], z_target: list[float],
+                      t_join: float, place: tuple[Revolution, int] | None = None):
+        """z returns from the helix's exit that cross the face as soon as they can
+        (``crossings``) and turn in front of it onto the join at t_join: the longest z can
         spend clear of the face, for x to plunge on the deepest passes."""
         for t_face, face, there in crossings:
             if t_face >= t_join or place is not None and not self._may_reach(place, t_face, face):
@@ -370,7 +372,7 @@ class ThreadCycle:
             onto = self._ramps.reach("z", face, z_target, duration=t_join - t_face)
             if onto is None or abs(onto.duration - (t_join - t_face)) > 1e-9:
                 continue
-            yield [moving(t_go, there), moving(t_face, onto)]
+            yield [there, moving(t_face, onto)]
 
     def _plunge(self, x_target: list[float], t_join: float, x_free: float) -> Stretch | None:
         """x onto the helix state x_target at t_join. The first pass plunges from rest at
@@ -391,8 +393,8 @@ class ThreadCycle:
 
         n = round((t_join - last.t_out) / period)  # periods from the exit to the join
 
-        @functools.cache
-        def arrives(k: int) -> bool:  # turning back after k periods still lands by t_join
+        def arrives(k: int) -> bool:  # turning back after k periods still lands by t_join (asked
+            # again for the hint: Ramps keeps the answer)
             return fastest(k) <= (n - k) * period + 1e-12
 
         # the latest turn that still arrives; the previous join's lies a step or two away

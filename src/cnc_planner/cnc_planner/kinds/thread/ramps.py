@@ -15,6 +15,7 @@ from cnc_planner.kinds.thread.spec import JOINTS
 from cnc_planner.motion.moves import MotionError, axis_limits, calculate
 
 RAMP_JERK_SHARE = 0.6  # of the axis jerk for ramps onto and off the helix
+_UNKNOWN = object()  # a query Ramps has not been asked (None: one ruckig found no move for)
 
 
 class Ramps:
@@ -43,8 +44,9 @@ class Ramps:
         """The move of ``joint`` from state start to state target (p, v, a), lasting at
         least ``duration`` if given, or None if ruckig finds none."""
         key = (joint, *start, *target, duration)
-        if key in self._known:
-            return self._known[key]
+        move = self._known.get(key, _UNKNOWN)
+        if move is not _UNKNOWN:
+            return move
         inp = self._inputs[joint]
         p, v, a = start
         inp.current_position, inp.current_velocity, inp.current_acceleration = [p], [v], [a]

@@ -42,11 +42,11 @@ def pieces(track: list[Stretch], t: np.ndarray) -> tuple[list[tuple], list[tuple
     """The stretches of ``track`` at sorted instants t, each from its start until the next
     begins (the first one before its start too): its moves as the kernels take them, (row,
     start, lo, hi) for the instants [lo, hi), and the other stretches as (stretch, lo, hi)."""
-    bounds = np.searchsorted(t, [begin for begin, _ in track[1:]], side="left").tolist()
+    bounds = t.searchsorted([begin for begin, _ in track[1:]]).tolist()  # side="left"
     moves, others = [], []
-    for (_, stretch), lo, hi in zip(track, [0] + bounds, bounds + [t.size]):
+    for (_, stretch), lo, hi in zip(track, [0, *bounds], [*bounds, t.size]):
         if hi > lo:
-            if isinstance(stretch, Move):
+            if type(stretch) is Move:
                 moves.append((stretch.row, stretch.start, lo, hi))
             else:
                 others.append((stretch, lo, hi))

@@ -166,11 +166,13 @@ def _inverse_response(drive: DriveModel, n: int, band: tuple[float, float] = INV
     kept = fade > 0
     z = np.exp(2j * math.pi * f[kept])
     z_inv = 1 / z
+    # the joints' common terms, each computed once (the products below keep their order)
+    z_less_1, z_plus_1, central, second = z - 1, 1 + z, z - z_inv, z - 2 + z_inv
     out = np.zeros((f.size, np.ravel(drive.kp).size), dtype=complex)
     for j, (kp, ff, af, lag, decay) in enumerate(zip(*(np.ravel(x).tolist() for x in (
             drive.kp, drive.velocity_ff, drive.accel_ff, drive.lag, drive.decay)))):
         with np.errstate(divide="ignore", invalid="ignore"):
-            inv_g = 2 * (z - decay) * (z - 1) / ((1 - decay) * period * (1 + z))
-            k = ff * (z - z_inv) * (1 / (2 * period)) + af * lag * (z - 2 + z_inv) * (1 / period**2) + kp
+            inv_g = 2 * (z - decay) * z_less_1 / ((1 - decay) * period * z_plus_1)
+            k = ff * central * (1 / (2 * period)) + af * lag * second * (1 / period**2) + kp
             out[kept, j] = (inv_g + kp) / k * fade[kept]
     return out

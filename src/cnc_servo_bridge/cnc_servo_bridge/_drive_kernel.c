@@ -28,32 +28,63 @@ static int take(PyObject *obj, Py_buffer *view, int writable, const char *name)
 
 /* DriveModel.step over every row, in place on the state; out[0..2] = measured position,
  * velocity and following error before each step. */
-static void run(Py_ssize_t rows, Py_ssize_t joints, const double *p_ref, const double *v_ref,
-                const double *a_ref, double *position, double *velocity, double *measured,
-                const double *kp, const double *velocity_ff, const double *accel_gain,
-                const double *decay, const double *v_limit, const double *dv_limit,
-                const double *resolution, double period, double *out)
+/* One joint's drive parameters. */
+typedef struct {
+    double kp, velocity_ff, accel_gain, decay, v_limit, dv_limit, resolution;
+} Drive;
+
+/* DriveModel.step for one joint and one period: the state (position, velocity, measured) in
+ * place; returns the following error. */
+static inline double step(const Drive *d, double period, double p_ref, double v_ref, double a_ref,
+                          double *position, double *velocity, double *measured)
+{
+    const double error = p_ref - *measured;
+    double v_cmd = d->velocity_ff * v_ref + d->accel_gain * a_ref + d->kp * error;
+    v_cmd = v_cmd < -d->v_limit ? -d->v_limit : v_cmd;
+    v_cmd = v_cmd > d->v_limit ? d->v_limit : v_cmd;
+    double v_new = v_cmd + (*velocity - v_cmd) * d->decay;
+    double dv = v_new - *velocity;
+    dv = dv < -d->dv_limit ? -d->dv_limit : dv;
+    dv = dv > d->dv_limit ? d->dv_limit : dv;
+    v_new = *velocity + dv;
+    *position = *position + 0.5 * (*velocity + v_new) * period;
+    *velocity = v_new;
+    /* numpy's round: to nearest, ties to even (rint in the default rounding mode) */
+    *measured = rint(*position / d->resolution) * d->resolution;
+    return error;
+}
+
+/* DriveModel.step over every row, in place on the state; out[0..2] = measured position,
+ * velocity and following error before each step. Two joints (a lathe's x and z, the
+ * thread cycle's) run with their state in registers, each joint's chain of dependent
+ * operations beside the other's; any other number one joint after another per row. */
+static void run(Py_ssize_t rows, Py_ssize_t joints, const double *restrict p_ref, const double *restrict v_ref,
+                const double *restrict a_ref, double *restrict position, double *restrict velocity,
+                double *restrict measured, const Drive *drives, double period, double *restrict out)
 {
     const Py_ssize_t plane = rows * joints;
+    if (joints == 2) {
+        double p0 = position[0], v0 = velocity[0], m0 = measured[0];
+        double p1 = position[1], v1 = velocity[1], m1 = measured[1];
+        for (Py_ssize_t k = 0; k < plane; k += 2) {
+            out[k] = m0;
+            out[k + 1] = m1;
+            out[plane + k] = v0;
+            out[plane + k + 1] = v1;
+            out[2 * plane + k] = step(&drives[0], period, p_ref[k], v_ref[k], a_ref[k], &p0, &v0, &m0);
+            out[2 * plane + k + 1] = step(&drives[1], period, p_ref[k + 1], v_ref[k + 1], a_ref[k + 1], &p1, &v1, &m1);
+        }
+        position[0] = p0, velocity[0] = v0, measured[0] = m0;
+        position[1] = p1, velocity[1] = v1, measured[1] = m1;
+        return;
+    }
     for (Py_ssize_t i = 0; i < rows; i++) {
         for (Py_ssize_t j = 0; j < joints; j++) {
             const Py_ssize_t k = i * joints + j;
-            const double error = p_ref[k] - measured[j];
             out[k] = measured[j];
             out[plane + k] = velocity[j];
-            out[2 * plane + k] = error;
-            double v_cmd = velocity_ff[j] * v_ref[k] + accel_gain[j] * a_ref[k] + kp[j] * error;
-            v_cmd = v_cmd < -v_limit[j] ? -v_limit[j] : v_cmd;
-            v_cmd = v_cmd > v_limit[j] ? v_limit[j] : v_cmd;
-            double v_new = v_cmd + (velocity[j] - v_cmd) * decay[j];
-            double dv = v_new - velocity[j];
-            dv = dv < -dv_limit[j] ? -dv_limit[j] : dv;
-            dv = dv > dv_limit[j] ? dv_limit[j] : dv;
-            v_new = velocity[j] + dv;
-            position[j] = position[j] + 0.5 * (velocity[j] + v_new) * period;
-            velocity[j] = v_new;
-            /* numpy's round: to nearest, ties to even (rint in the default rounding mode) */
-            measured[j] = rint(position[j] / resolution[j]) * resolution[j];
+            out[2 * plane + k] = step(&drives[j], period, p_ref[k], v_ref[k], a_ref[k], &position[j],
+                                      &velocity[j], &measured[j]);
         }
     }
 }
@@ -119,12 +150,21 @@ static PyObject *run_py(PyObject *self, PyObject *args)
         const double *d[ARRAYS];
         for (int a = 0; a < ARRAYS; a++)
             d[a] = (const double *)view[a].buf;
-        Py_BEGIN_ALLOW_THREADS
-        run(rows, joints, d[P_REF], d[V_REF], d[A_REF], (double *)view[POSITION].buf,
-            (double *)view[VELOCITY].buf, (double *)view[MEASURED].buf, d[KP], d[VELOCITY_FF],
-            d[ACCEL_GAIN], d[DECAY], d[V_LIMIT], d[DV_LIMIT], d[RESOLUTION], period,
-            (double *)view[OUT].buf);
-        Py_END_ALLOW_THREADS
+        Drive *drives = PyMem_Malloc((size_t)joints * sizeof(Drive));
+        ok = drives != NULL;
+        if (!ok)
+            PyErr_NoMemory();
+        for (Py_ssize_t j = 0; ok && j < joints; j++)
+            drives[j] = (Drive){d[KP][j], d[VELOCITY_FF][j], d[ACCEL_GAIN][j], d[DECAY][j], d[V_LIMIT][j],
+                                d[DV_LIMIT][j], d[RESOLUTION][j]};
+        if (ok) {
+            Py_BEGIN_ALLOW_THREADS
+            run(rows, joints, d[P_REF], d[V_REF], d[A_REF], (double *)view[POSITION].buf,
+                (double *)view[VELOCITY].buf, (double *)view[MEASURED].buf, drives, period,
+                (double *)view[OUT].buf);
+            Py_END_ALLOW_THREADS
+        }
+        PyMem_Free(drives);
     }
     for (int a = 0; a < taken; a++)
         PyBuffer_Release(&view[a]);

@@ -26,8 +26,6 @@ static int take(PyObject *obj, Py_buffer *view, int writable, const char *name)
     return 0;
 }
 
-/* DriveModel.step over every row, in place on the state; out[0..2] = measured position,
- * velocity and following error before each step. */
 /* One joint's drive parameters. */
 typedef struct {
     double kp, velocity_ff, accel_gain, decay, v_limit, dv_limit, resolution;
@@ -54,37 +52,58 @@ static inline double step(const Drive *d, double period, double p_ref, double v_
     return error;
 }
 
+enum { MAX_IN_REGISTERS = 6 };  /* joints whose state the loop below keeps in registers */
+
+/* DriveModel.step over every row for `joints` joints, a constant once inlined: the loop over
+ * the joints unrolls, their state stays in registers, and each joint's chain of dependent
+ * operations runs beside the others'. */
+static inline __attribute__((always_inline)) void run_fixed(
+    const Py_ssize_t joints, Py_ssize_t rows, const double *restrict p_ref, const double *restrict v_ref,
+    const double *restrict a_ref, double *restrict position, double *restrict velocity, double *restrict measured,
+    const Drive *drives, double period, double *restrict out)
+{
+    const Py_ssize_t plane = rows * joints;
+    double pos[MAX_IN_REGISTERS], vel[MAX_IN_REGISTERS], meas[MAX_IN_REGISTERS];
+#pragma GCC unroll 8
+    for (Py_ssize_t j = 0; j < joints; j++)
+        pos[j] = position[j], vel[j] = velocity[j], meas[j] = measured[j];
+    for (Py_ssize_t k = 0; k < plane; k += joints) {
+#pragma GCC unroll 8
+        for (Py_ssize_t j = 0; j < joints; j++) {
+            out[k + j] = meas[j];
+            out[plane + k + j] = vel[j];
+            out[2 * plane + k + j] = step(&drives[j], period, p_ref[k + j], v_ref[k + j], a_ref[k + j], &pos[j],
+                                          &vel[j], &meas[j]);
+        }
+    }
+#pragma GCC unroll 8
+    for (Py_ssize_t j = 0; j < joints; j++)
+        position[j] = pos[j], velocity[j] = vel[j], measured[j] = meas[j];
+}
+
 /* DriveModel.step over every row, in place on the state; out[0..2] = measured position,
- * velocity and following error before each step. Two joints (a lathe's x and z, the
- * thread cycle's) run with their state in registers, each joint's chain of dependent
- * operations beside the other's; any other number one joint after another per row. */
+ * velocity and following error before each step. Up to MAX_IN_REGISTERS joints (every
+ * machine here) with their state in registers; more, one joint after another per row. */
 static void run(Py_ssize_t rows, Py_ssize_t joints, const double *restrict p_ref, const double *restrict v_ref,
                 const double *restrict a_ref, double *restrict position, double *restrict velocity,
                 double *restrict measured, const Drive *drives, double period, double *restrict out)
 {
-    const Py_ssize_t plane = rows * joints;
-    if (joints == 2) {
-        double p0 = position[0], v0 = velocity[0], m0 = measured[0];
-        double p1 = position[1], v1 = velocity[1], m1 = measured[1];
-        for (Py_ssize_t k = 0; k < plane; k += 2) {
-            out[k] = m0;
-            out[k + 1] = m1;
-            out[plane + k] = v0;
-            out[plane + k + 1] = v1;
-            out[2 * plane + k] = step(&drives[0], period, p_ref[k], v_ref[k], a_ref[k], &p0, &v0, &m0);
-            out[2 * plane + k + 1] = step(&drives[1], period, p_ref[k + 1], v_ref[k + 1], a_ref[k + 1], &p1, &v1, &m1);
-        }
-        position[0] = p0, velocity[0] = v0, measured[0] = m0;
-        position[1] = p1, velocity[1] = v1, measured[1] = m1;
-        return;
+    switch (joints) {
+    case 1: run_fixed(1, rows, p_ref, v_ref, a_ref, position, velocity, measured, drives, period, out); return;
+    case 2: run_fixed(2, rows, p_ref, v_ref, a_ref, position, velocity, measured, drives, period, out); return;
+    case 3: run_fixed(3, rows, p_ref, v_ref, a_ref, position, velocity, measured, drives, period, out); return;
+    case 4: run_fixed(4, rows, p_ref, v_ref, a_ref, position, velocity, measured, drives, period, out); return;
+    case 5: run_fixed(5, rows, p_ref, v_ref, a_ref, position, velocity, measured, drives, period, out); return;
+    case 6: run_fixed(6, rows, p_ref, v_ref, a_ref, position, velocity, measured, drives, period, out); return;
+    default: break;
     }
-    for (Py_ssize_t i = 0; i < rows; i++) {
+    const Py_ssize_t plane = rows * joints;
+    for (Py_ssize_t k = 0; k < plane; k += joints) {
         for (Py_ssize_t j = 0; j < joints; j++) {
-            const Py_ssize_t k = i * joints + j;
-            out[k] = measured[j];
-            out[plane + k] = velocity[j];
-            out[2 * plane + k] = step(&drives[j], period, p_ref[k], v_ref[k], a_ref[k], &position[j],
-                                      &velocity[j], &measured[j]);
+            out[k + j] = measured[j];
+            out[plane + k + j] = velocity[j];
+            out[2 * plane + k + j] = step(&drives[j], period, p_ref[k + j], v_ref[k + j], a_ref[k + j],
+                                          &position[j], &velocity[j], &measured[j]);
         }
     }
 }

@@ -244,6 +244,27 @@ def test_the_compiled_kernel_refuses_arrays_it_would_overrun(argument, replaceme
     _drive_kernel.run(*_kernel_arguments(5, 2))  # the same call with every array right runs
 
 
+def test_the_kernel_steps_any_number_of_joints_alike():
+    """The kernel keeps up to six joints in registers and steps more one after another per
+    row: seven joints at once give, bit for bit, what each gives alone (joints share nothing)."""
+    rng = np.random.default_rng(7)
+    rows, joints = 2000, 7
+    refs = [np.cumsum(rng.normal(0, 1e-3, (rows, joints)), axis=0), rng.normal(0, 0.5, (rows, joints)),
+            rng.normal(0, 20, (rows, joints))]
+    start = [rng.uniform(-0.1, 0.1, joints), np.zeros(joints), np.zeros(joints)]
+    gains = [rng.uniform(10, 150, joints), rng.uniform(0, 1, joints), rng.uniform(0, 1e-2, joints),
+             rng.uniform(0.5, 0.99, joints), np.full(joints, 0.5), np.full(joints, 5e-3),
+             10 ** rng.uniform(-8, -5, joints)]
+    together = np.empty((3, rows, joints))
+    _drive_kernel.run(*(x.copy() for x in refs), *(x.copy() for x in start), *gains, T, together)
+    for j in range(joints):
+        alone = np.empty((3, rows, 1))
+        _drive_kernel.run(*(np.ascontiguousarray(x[:, j:j + 1]) for x in refs), *(x[j:j + 1].copy() for x in start),
+                          *(g[j:j + 1] for g in gains), T, alone)
+        assert np.array_equal(alone[..., 0], together[..., j])
+    assert np.ptp(together[0], axis=0).min() > 0.0  # every joint moved
+
+
 def test_simulate_starts_at_rest_at_the_first_reference():
     model = x_drive()
     p = np.linspace(0.01, 0.02, 50)[:, None]

@@ -14,14 +14,15 @@ def config(pattern: str) -> list[str]:
     return sorted(os.path.relpath(f, HERE) for f in glob(str(HERE.parents[1] / "config" / pattern)))
 
 # Bulk sampling of ruckig pieces (motion/_sample_kernel.c), the drill's lag margins
-# (kinds/drill/_lag_kernel.c) and the thread's stock check (kinds/thread/_stock_kernel.c),
-# compiled here (pip or colcon);
+# (kinds/drill/_lag_kernel.c), the thread's stock check (kinds/thread/_stock_kernel.c) and
+# its helix (kinds/thread/_helix_kernel.c), compiled here (pip or colcon);
 # -ffp-contract=off keeps every multiply and add separately rounded, as numpy's are, so it
 # equals the numpy evaluation (a fused multiply-add would differ in the last bit).
 KERNELS = [Extension(f"{PACKAGE}.{name.replace('/', '.')}", sources=[f"{PACKAGE}/{name}.c"],
                      depends=[f"{PACKAGE}/kernel_buffers.h", f"{PACKAGE}/ruckig_piece.h"],
                      extra_compile_args=["-O2", "-ffp-contract=off"])
-           for name in ("motion/_sample_kernel", "kinds/drill/_lag_kernel", "kinds/thread/_stock_kernel")]
+           for name in ("motion/_sample_kernel", "kinds/drill/_lag_kernel", "kinds/thread/_stock_kernel",
+                        "kinds/thread/_helix_kernel")]
 
 setup(
     name=PACKAGE,

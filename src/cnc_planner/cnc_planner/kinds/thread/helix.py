@@ -31,6 +31,7 @@ import math
 
 import numpy as np
 
+from cnc_planner.kinds.thread import _helix_kernel
 from cnc_planner.kinds.thread.spec import TWO_PI, Pass, ThreadSpec
 from cnc_planner.vibration.waveform import waveform
 
@@ -39,19 +40,23 @@ WAVE_POINTS = 4096  # phase samples for the waveform's derivative maxima (the co
 
 def helix(spec: ThreadSpec, cut: Pass, psi: np.ndarray) -> np.ndarray:
     """(3, len(psi), 2): axis x and z, their velocity and acceleration on the helix of a
-    pass with its vibration, at helix angles psi (the spindle turning at speed)."""
+    pass with its vibration, at helix angles psi (the spindle turning at speed).
+
+    With w the symmetric waveform (waveform() at r = 0.5) of u = per_rev * psi / 2pi + phase:
+    depth = d - A * (1 - w), the groove's z under the tool g = start_z + s * pitch * psi / 2pi,
+    x = origin_x + surface(g) + radial * depth, z = origin_z + g + s * depth * tan(infeed),
+    and their derivatives at the spindle speed. Evaluated by _helix_kernel.c around numpy's
+    sine and cosine, in waveform()'s and this formula's order of operations."""
     omega, s, tan = spec.spindle_speed, spec.direction, math.tan(spec.infeed_angle)
     rate = cut.per_rev * omega / TWO_PI
-    w, w1, w2, _ = waveform(cut.per_rev * psi / TWO_PI + cut.phase)
-    depth = cut.depth - cut.amplitude * (1.0 - w)
-    ddepth, dddepth = cut.amplitude * rate * w1, cut.amplitude * rate**2 * w2
-    groove = spec.start_z + s * spec.pitch * psi / TWO_PI  # the groove's z under the tool
-    cone = spec.radial * spec.taper / 2 * s * spec.lead_speed  # x speed of the surface along it
+    psi = np.asarray(psi, dtype=float)
+    angle = np.empty_like(psi)
+    _helix_kernel.phase(psi, cut.per_rev, cut.phase, TWO_PI, angle)
     out = np.empty((3, psi.size, 2))
-    out[0, :, 0] = spec.origin[0] + spec.surface(groove) + spec.radial * depth
-    out[0, :, 1] = spec.origin[1] + groove + s * depth * tan
-    out[1, :, 0], out[1, :, 1] = cone + spec.radial * ddepth, s * (spec.lead_speed + tan * ddepth)
-    out[2, :, 0], out[2, :, 1] = spec.radial * dddepth, s * tan * dddepth
+    _helix_kernel.state(psi, np.sin(angle), np.cos(angle), out, (
+        math.pi, TWO_PI, 2 * math.pi**2, cut.depth, cut.amplitude, cut.amplitude * rate, cut.amplitude * rate**2,
+        spec.start_z, s * spec.pitch, spec.origin[0], spec.major_radius, spec.surface_slope, spec.radial,
+        spec.origin[1], s, tan, spec.radial * spec.taper / 2 * s * spec.lead_speed, spec.lead_speed, s * tan))
     return out
 
 

@@ -9,6 +9,7 @@ bridge's feedback, not only the command, holds lead, depth and flank offset.
 """
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from collections.abc import Callable
@@ -44,6 +45,8 @@ JERK_PROBE_S = 1e-5  # s: the jerk either side of a join is the acceleration's s
 GRID_ROUNDING = 1e-9  # s: an instant this close to a servo instant is read as it
 MISS_MARGIN = 1e-6  # s: a join is passed over untried only if z's fastest time misses it by more
 # (ruckig's rounding is far below)
+
+Crossing = tuple[float, list[float], Stretch]  # z crossing the face outwards: (cycle time, state, the stretch there)
 
 
 @dataclass
@@ -142,11 +145,12 @@ class ThreadCycle:
             # groove while x pulls out), or, where that would cut the flank, from rest
             # once x has cleared the stock
             starts = [(last.t_out, [float(q[0]) for q in last.stop.at_time(0.0)]), (t_go, [z_from, 0.0, 0.0])]
-            crossings = self._face_crossings(starts[0])
+            # found when a join first needs them: most passes join straight from the exit
+            crossings = functools.cache(functools.partial(self._face_crossings, starts[0]))
         else:
             t_begin, x_free = 0.0, self.t_lead
             starts = [(self.t_lead, [self.start[1], 0.0, 0.0])]
-            crossings = []
+            crossings = list  # the first pass comes from rest: it never crosses the face back
         phase = TWO_PI * start / spec.starts
         psi_room = TWO_PI * (spec.start_z / spec.pitch - JOIN_ROOM_REVS)  # the latest join before the face
         first = max(math.ceil(starts[0][0] / period - 1e-9) + 1, math.ceil(self.settled / period - 1e-9))
@@ -207,7 +211,7 @@ class ThreadCycle:
         return True
 
     def _air_path(self, target: np.ndarray, t_join: float, t_begin: float, starts: list[tuple[float, list[float]]],
-                  crossings: list[tuple[float, list[float], Stretch]], x_free: float,
+                  crossings: Callable[[], list[Crossing]], x_free: float,
                   place: tuple[Revolution, int] | None = None) -> list[list[Stretch]] | None:
         """The first of _air_paths onto ``target`` at t_join that keeps the tool out of the
         stock from t_begin on, or None (the grid is built for the first path found: most
@@ -286,7 +290,7 @@ class ThreadCycle:
         return t_go, last.stop.at_time(last.stop.duration)[0][0]
 
     def _air_paths(self, target: np.ndarray, t_join: float, starts: list[tuple[float, list[float]]],
-                   crossings: list[tuple[float, list[float], Stretch]], x_free: float,
+                   crossings: Callable[[], list[Crossing]], x_free: float,
                    place: tuple[Revolution, int] | None = None):
         """The x plunge and z returns that reach the helix state ``target`` (rows x, z)
         exactly at t_join, best first: z from each of ``starts`` (time, state) that can,
@@ -322,7 +326,7 @@ class ThreadCycle:
             yield [[plunge()], [moving(t_leave, back)]]
             late = (t_go, z_state, fastest)
         if self.cuts:
-            for z in self._through_face(crossings, z_target, t_join, place):
+            for z in self._through_face(crossings(), z_target, t_join, place):
                 if plunge() is None:
                     return
                 yield [[plunge()], z]
@@ -347,7 +351,7 @@ class ThreadCycle:
                 return
             yield [[plunge()], [moving(t_leave, there), moving(t_turn, onto)]]
 
-    def _face_crossings(self, start: tuple[float, list[float]]) -> list[tuple[float, list[float], Stretch]]:
+    def _face_crossings(self, start: tuple[float, list[float]]) -> list[Crossing]:
         """(cycle time, z state, the stretch there) at which z, from the helix's exit
         ``start``, crosses the face as soon as it can at each of THROUGH_SPEEDS outwards:
         the same for every candidate join of a pass."""
@@ -361,7 +365,7 @@ class ThreadCycle:
                 crossings.append((t_go + there.duration, face, moving(t_go, there)))
         return crossings
 
-    def _through_face(self, crossings: list[tuple[float, list[float], Stretch]], z_target: list[float],
+    def _through_face(self, crossings: list[Crossing], z_target: list[float],
                       t_join: float, place: tuple[Revolution, int] | None = None):
         """z returns from the helix's exit that cross the face as soon as they can
         (``crossings``) and turn in front of it onto the join at t_join: the longest z can

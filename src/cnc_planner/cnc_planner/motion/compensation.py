@@ -79,8 +79,8 @@ def settled(
     """The correction (n, joints) up to where it has settled below `tolerance` (m), but not
     before sample `motion_end`, ending at exactly zero; with its derivatives:
     (3, kept, joints). The command lasts (kept - 1) servo periods."""
-    unsettled = np.flatnonzero(np.any(np.abs(correction) > tolerance, axis=1))
-    last = max(motion_end, unsettled[-1] + 1 if unsettled.size else 0)
+    unsettled = np.nonzero(np.abs(correction) > tolerance)[0]  # rows, in order (any(axis=1) loops per row)
+    last = max(motion_end, int(unsettled[-1]) + 1 if unsettled.size else 0)
     kept = correction[: last + 1].copy()
     kept[-1] = 0.0
     return np.stack([kept, *_derivatives(kept, period)])
@@ -162,17 +162,19 @@ def _inverse_response(drive: DriveModel, n: int, band: tuple[float, float] = INV
     period = drive.period
     f = np.fft.rfftfreq(n)  # cycles per servo period
     lo, hi = band
-    fade = np.sin(0.5 * math.pi * np.clip((hi - f) / (hi - lo), 0.0, 1.0)) ** 2
+    below = f[f < hi]  # from hi up the fade is 0
+    fade = np.sin(0.5 * math.pi * np.clip((hi - below) / (hi - lo), 0.0, 1.0)) ** 2
     kept = fade > 0
-    z = np.exp(2j * math.pi * f[kept])
+    z = np.exp(2j * math.pi * below[kept])
     z_inv = 1 / z
     # the joints' common terms, each computed once (the products below keep their order)
     z_less_1, z_plus_1, central, second = z - 1, 1 + z, z - z_inv, z - 2 + z_inv
     out = np.zeros((f.size, np.ravel(drive.kp).size), dtype=complex)
+    fade, within = fade[kept], out[:below.size]  # the bins kept: f below hi, fade above 0
     for j, (kp, ff, af, lag, decay) in enumerate(zip(*(np.ravel(x).tolist() for x in (
             drive.kp, drive.velocity_ff, drive.accel_ff, drive.lag, drive.decay)))):
         with np.errstate(divide="ignore", invalid="ignore"):
             inv_g = 2 * (z - decay) * z_less_1 / ((1 - decay) * period * z_plus_1)
             k = ff * central * (1 / (2 * period)) + af * lag * second * (1 / period**2) + kp
-            out[kept, j] = (inv_g + kp) / k * fade[kept]
+            within[kept, j] = (inv_g + kp) / k * fade
     return out

@@ -79,8 +79,8 @@ def settled(
     """The correction (n, joints) up to where it has settled below `tolerance` (m), but not
     before sample `motion_end`, ending at exactly zero; with its derivatives:
     (3, kept, joints). The command lasts (kept - 1) servo periods."""
-    unsettled = np.nonzero(np.abs(correction) > tolerance)[0]  # rows, in order (any(axis=1) loops per row)
-    last = max(motion_end, int(unsettled[-1]) + 1 if unsettled.size else 0)
+    unsettled = np.flatnonzero(np.abs(correction) > tolerance)  # flat, in order: any(axis=1) loops per row
+    last = max(motion_end, int(unsettled[-1]) // correction.shape[1] + 1 if unsettled.size else 0)
     kept = correction[: last + 1].copy()
     kept[-1] = 0.0
     return np.stack([kept, *_derivatives(kept, period)])

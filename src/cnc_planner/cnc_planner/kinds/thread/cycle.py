@@ -435,7 +435,7 @@ class ThreadCycle:
 
         def on_helix(t: np.ndarray) -> np.ndarray:
             if last[0] is None or not np.array_equal(last[0], t):
-                last[:] = t.copy(), helix(spec, cut, theta0 + speed * t - theta_ref)  # self.psi's
+                last[:] = t.copy(), helix(spec, cut, theta0 + speed * t - theta_ref)  # self.psi(theta_ref, t)
             return last[1]
 
         return on_helix

@@ -124,7 +124,8 @@ def planning_rows() -> tuple[list[tuple], list[str]]:
         rows.append((name, p.duration, wall, cpu, p.duration / wall))
     notes.append(f"each row: the fastest (wall) of {PLAN_RUNS} runs; cpu s: the process time of that run, x on "
                  f"cpu: plan s / cpu s (the {os.cpu_count()} CPUs are shared: wall above cpu is time the planner "
-                 "waited for a CPU).")
+                 "waited for a CPU); the allocator keeps freed memory, as cnc-plan and the nodes set it "
+                 "(cnc_msgs_py.heap).")
     return rows, notes
 
 

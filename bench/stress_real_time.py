@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import os
 import re
+import signal
 import subprocess
 import sys
 import tempfile
@@ -30,7 +31,9 @@ BUSY = "import time\nend = time.monotonic() + {limit}\nwhile time.monotonic() < 
 
 class RestOfSuite:
     """The rest of the test suite, run again each time it ends, so that every real-time run
-    has it alongside; each finished round's summary and failed tests are kept."""
+    has it alongside; each finished round's summary and failed tests are kept. Each round
+    runs in a process group of its own, killed whole when it ends or is stopped: killing
+    pytest alone left the nodes of the run it was in alive, still talking in their domain."""
 
     def __init__(self, command: list[str], env: dict[str, str]) -> None:
         self.command, self.env = command, env
@@ -43,17 +46,26 @@ class RestOfSuite:
             return
         if self.proc is not None:
             self.outcomes.append(self._outcome())
+            self._kill_group()  # whatever the round left behind
         self.log.seek(0)
         self.log.truncate()
-        self.proc = subprocess.Popen(self.command, cwd=ROOT, env=self.env, stdout=self.log, stderr=subprocess.STDOUT)
+        self.proc = subprocess.Popen(self.command, cwd=ROOT, env=self.env, stdout=self.log, stderr=subprocess.STDOUT,
+                                     start_new_session=True)
 
     def stop(self) -> None:
-        """Kill an unfinished round (not counted)."""
+        """Kill an unfinished round (not counted) with every process it started."""
         if self.proc is not None and self.proc.poll() is None:
-            self.proc.kill()
+            self._kill_group()
             self.proc.wait()
         elif self.proc is not None:
             self.outcomes.append(self._outcome())
+            self._kill_group()
+
+    def _kill_group(self) -> None:
+        try:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+        except ProcessLookupError:  # nothing of the round is left
+            pass
 
     def _outcome(self) -> str:
         self.log.seek(0)

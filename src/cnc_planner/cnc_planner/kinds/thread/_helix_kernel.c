@@ -27,24 +27,26 @@ static inline double remainder_one(double u)
     return mod;
 }
 
-/* One-dimensional float64 arguments of n values each, the last `writable` of them written. */
+/* The arguments' buffers (take_all: float64, the last `writable` of them written), each one
+ * dimension of n values (n: the first's). Whether all are right; *taken: how many to release. */
 static int take_vectors(PyObject **obj, Py_buffer *view, int count, int writable, const char *const *names,
-                        Py_ssize_t *n)
+                        Py_ssize_t *n, int *taken)
 {
+    *taken = take_all(obj, view, count, "dddd", count - writable, names);  /* count <= 4 */
+    if (*taken < count)
+        return 0;
+    *n = view[0].shape[0];
     for (int k = 0; k < count; k++) {
-        if (take(obj[k], &view[k], k >= count - writable, "d", names[k]) < 0)
-            return k;
-        if (view[k].ndim != 1 || (k && view[k].shape[0] != *n)) {
-            if (k)
-                PyErr_Format(PyExc_ValueError, "%s: expected %zd values in one dimension", names[k], *n);
-            else
-                PyErr_Format(PyExc_ValueError, "%s: expected one dimension", names[k]);
-            PyBuffer_Release(&view[k]);
-            return k;
+        if (view[k].ndim != 1) {
+            PyErr_Format(PyExc_ValueError, "%s: expected one dimension", names[k]);
+            return 0;
         }
-        *n = view[0].shape[0];
+        if (view[k].shape[0] != *n) {
+            PyErr_Format(PyExc_ValueError, "%s: expected %zd values", names[k], *n);
+            return 0;
+        }
     }
-    return count;
+    return 1;
 }
 
 static PyObject *phase_py(PyObject *self, PyObject *args)
@@ -54,11 +56,11 @@ static PyObject *phase_py(PyObject *self, PyObject *args)
     Py_buffer view[2];
     double per_rev, phase, two_pi;
     Py_ssize_t n = 0;
+    int taken;
     (void)self;
     if (!PyArg_ParseTuple(args, "OdddO:phase", &obj[0], &per_rev, &phase, &two_pi, &obj[1]))
         return NULL;
-    const int taken = take_vectors(obj, view, 2, 1, names, &n);
-    const int ok = taken == 2;
+    const int ok = take_vectors(obj, view, 2, 1, names, &n, &taken);
     if (ok) {
         for (Py_ssize_t i = 0; i < n; i++) {
             const double u = per_rev * AT(view[0], double, i) / two_pi + phase;
@@ -82,14 +84,14 @@ static PyObject *state_py(PyObject *self, PyObject *args)
     Py_buffer view[4];
     Helix h;
     Py_ssize_t n = 0;
+    int taken;
     (void)self;
     if (!PyArg_ParseTuple(args, "OOOO(ddddddddddddddddddd):state", &obj[0], &obj[1], &obj[2], &obj[3], &h.pi,
                           &h.two_pi, &h.two_pi_squared, &h.depth, &h.amplitude, &h.amplitude_rate,
                           &h.amplitude_rate_squared, &h.start_z, &h.s_pitch, &h.origin_x, &h.major, &h.slope,
                           &h.radial, &h.origin_z, &h.s, &h.tan, &h.cone, &h.lead_speed, &h.s_tan))
         return NULL;
-    const int taken = take_vectors(obj, view, 3, 0, names, &n);
-    int ok = taken == 3;
+    int ok = take_vectors(obj, view, 3, 0, names, &n, &taken);
     Py_buffer *out = &view[3];
     if (ok && PyObject_GetBuffer(obj[3], out, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_WRITABLE) == 0) {
         if (out->format == NULL || strcmp(out->format, "d") != 0 || out->len != (Py_ssize_t)(6 * n * sizeof(double))) {

@@ -144,7 +144,7 @@ class ServoLoop:
         saved = (state.position.copy(), state.velocity.copy(), state.measured.copy())
         measured, velocity, error = self.drives.run(p, v, a)
         tripped = (np.any(np.abs(error) > self.drives.following_error_limit, axis=1)
-                   | np.any((measured < self.buffer.lo) | (measured > self.buffer.hi), axis=1))
+                   | np.any(self.buffer.outside_travel(measured), axis=1))
         n = len(p)
         if tripped.any():
             n = int(np.argmax(tripped)) + 1
@@ -166,7 +166,7 @@ class ServoLoop:
             self._raise(t_ns, f"following error on {self.joints[j]}: {abs(error[j]):.6f} exceeds "
                               f"{self.drives.following_error_limit[j]:.6f}")
             return
-        outside = np.argwhere((measured < self.buffer.lo) | (measured > self.buffer.hi))
+        outside = np.argwhere(self.buffer.outside_travel(measured))
         if len(outside):
             j = outside[0][0]
             self._raise(t_ns, f"soft limit: {self.joints[j]} at {measured[j]:.6f} is outside its travel")

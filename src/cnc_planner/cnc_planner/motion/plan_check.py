@@ -55,12 +55,12 @@ def check_plan(plan: Plan, machine: Machine, period: float, field: str) -> None:
         except SetpointError as err:
             raise JobError(field, f"the plan breaks the bridge's setpoint rules: {err}") from err
         measured, _, error = drives.run(p, v, a)
-        tripped = np.greater(np.abs(error), limit, order="F")  # down each joint's column (SetpointBuffer.validate)
+        tripped = np.greater(np.abs(error), limit, order="F")  # down each joint's column (SetpointBuffer.outside_travel)
         if tripped.any():  # argwhere only then: it scans the whole block even when nothing is wrong
             i, j = np.argwhere(tripped)[0]
             raise JobError(field, f"{plan.joints[j]}: the drive would trip its following error limit "
                                   f"({abs(error[i, j]):.6g} > {limit[j]:.6g}) at {k[i] * period:.3f} s of the plan")
-        outside = np.less(measured, buffer.lo, order="F") | np.greater(measured, buffer.hi, order="F")
+        outside = buffer.outside_travel(measured)
         if outside.any():
             i, j = np.argwhere(outside)[0]
             raise JobError(field, f"{plan.joints[j]}: the drive would overshoot its travel "

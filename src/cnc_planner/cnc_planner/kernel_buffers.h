@@ -1,6 +1,7 @@
 /* Array arguments of the planner's compiled kernels (motion/_sample_kernel.c,
- * kinds/drill/_lag_kernel.c, kinds/thread/_stock_kernel.c and _helix_kernel.c), through the buffer protocol: float64 ("d") or intp ("l")
- * arrays of one or two dimensions, any strides (a plan's columns are strided). */
+ * kinds/drill/_lag_kernel.c, kinds/thread/_stock_kernel.c and _helix_kernel.c), through the
+ * buffer protocol: float64 ("d") or intp ("l") arrays of one or two dimensions, any strides
+ * (a plan's columns are strided). */
 #ifndef CNC_PLANNER_KERNEL_BUFFERS_H
 #define CNC_PLANNER_KERNEL_BUFFERS_H
 

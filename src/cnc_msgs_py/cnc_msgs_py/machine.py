@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import yaml
@@ -53,8 +53,37 @@ class Axis:
 
 
 @dataclass(frozen=True)
+class Tolerance:
+    """How far the real drive may differ from its description and the plan must still be
+    safe: factor ranges [lo, hi] on kp, velocity_ff, accel_ff and velocity_lag, a range of
+    transport delay added to the described one (s), and the most backlash and friction
+    (m or rad, m/s or rad/s) the real axis may have beyond the described."""
+
+    kp: tuple[float, float] = (0.7, 1.3)
+    velocity_ff: tuple[float, float] = (0.95, 1.0)
+    accel_ff: tuple[float, float] = (1.0, 1.0)
+    velocity_lag: tuple[float, float] = (1.0, 3.0)
+    delay: tuple[float, float] = (0.0, 0.002)
+    backlash: float = 0.0
+    friction: float = 0.0
+
+
+EXACT = Tolerance(kp=(1.0, 1.0), velocity_ff=(1.0, 1.0), velocity_lag=(1.0, 1.0), delay=(0.0, 0.0))
+
+
+TOLERANCE_FACTORS = ("kp", "velocity_ff", "accel_ff", "velocity_lag")  # ranges of factors
+TOLERANCE_KEYS = (*TOLERANCE_FACTORS, "delay", "backlash", "friction")
+
+
+@dataclass(frozen=True)
 class Drive:
-    """Servo drive model of one axis, as the bridge runs it and the planner compensates it."""
+    """Servo drive model of one axis, as the bridge runs it and the planner compensates it.
+
+    delay: transport delay of the command (s, whole servo periods); backlash: lost motion
+    between motor and load at a reversal (m or rad); friction: Coulomb friction in the
+    velocity loop, as the velocity command it takes to break the axis away (m/s or rad/s);
+    noise: encoder noise, standard deviation (m or rad; a plant's, never the planner's).
+    The equations are in docs/machines.md."""
 
     kp: float
     velocity_ff: float
@@ -62,6 +91,11 @@ class Drive:
     velocity_lag: float
     resolution: float
     following_error_limit: float
+    delay: float = 0.0
+    backlash: float = 0.0
+    friction: float = 0.0
+    noise: float = 0.0
+    tolerance: Tolerance = Tolerance()
 
 
 @dataclass(frozen=True)
@@ -108,6 +142,13 @@ class Machine:
             return self.axes[name]
         except KeyError as err:
             raise MachineError(f"machine '{self.name}' has no axis '{name}'") from err
+
+
+def exactly_as_described(machine: Machine) -> Machine:
+    """The machine with every drive's tolerance closed (EXACT): the plan trusts the
+    description to the last digit, as after identification on a machine that holds it."""
+    drives = {j: replace(d, tolerance=EXACT) for j, d in machine.drives.items()}
+    return replace(machine, drives=drives)
 
 
 def machine_dirs() -> list[Path]:
@@ -163,19 +204,64 @@ def _parse_axis(name: str, spec: object, where: str) -> Axis:
     )
 
 
-def _parse_drive(spec: object, where: str) -> Drive:
+DRIVE_KEYS = ("kp", "velocity_ff", "accel_ff", "velocity_lag", "resolution", "following_error_limit")
+DRIVE_EXTRA_KEYS = ("delay", "backlash", "friction")  # zero unless given
+PLANT_ONLY_KEYS = ("noise",)  # a plant's (cnc_msgs_py.plant), never a description's
+
+
+def parse_drive(spec: object, where: str, base: Drive | None = None, plant: bool = False) -> Drive:
+    """A drive block; keys missing from it come from ``base`` (a plant over its description)."""
     if not isinstance(spec, dict):
         raise MachineError(f"{where}: expected a mapping")
+    allowed = (*DRIVE_KEYS, *DRIVE_EXTRA_KEYS, *(PLANT_ONLY_KEYS if plant else ("tolerance",)))
+    unknown = [k for k in spec if k not in allowed]
+    if unknown:
+        raise MachineError(f"{where}.{unknown[0]}: unknown key ({', '.join(allowed)})")
+
+    def get(key: str, positive: bool = True) -> float:
+        if key not in spec and base is not None:
+            return getattr(base, key)
+        if key not in spec and key in (*DRIVE_EXTRA_KEYS, *PLANT_ONLY_KEYS):
+            return 0.0
+        number = _number(spec.get(key), f"{where}.{key}", positive)
+        if not positive and number < 0 and key not in ("velocity_ff", "accel_ff"):
+            raise MachineError(f"{where}.{key}: must be >= 0, got {number!r}")
+        return number
+
     return Drive(
-        kp=_number(spec.get("kp"), f"{where}.kp"),
-        velocity_ff=_number(spec.get("velocity_ff"), f"{where}.velocity_ff", positive=False),
-        accel_ff=_number(spec.get("accel_ff"), f"{where}.accel_ff", positive=False),
-        velocity_lag=_number(spec.get("velocity_lag"), f"{where}.velocity_lag"),
-        resolution=_number(spec.get("resolution"), f"{where}.resolution"),
-        following_error_limit=_number(
-            spec.get("following_error_limit"), f"{where}.following_error_limit"
-        ),
+        kp=get("kp"), velocity_ff=get("velocity_ff", False), accel_ff=get("accel_ff", False),
+        velocity_lag=get("velocity_lag"), resolution=get("resolution"),
+        following_error_limit=get("following_error_limit"),
+        delay=get("delay", False), backlash=get("backlash", False), friction=get("friction", False),
+        noise=get("noise", False),
+        tolerance=base.tolerance if base is not None else _parse_tolerance(spec.get("tolerance"), f"{where}.tolerance"),
     )
+
+
+def _parse_tolerance(spec: object, where: str) -> Tolerance:
+    """A drive's tolerance; keys not given keep Tolerance's defaults."""
+    if spec is None:
+        return Tolerance()
+    if not isinstance(spec, dict):
+        raise MachineError(f"{where}: expected a mapping")
+    unknown = [k for k in spec if k not in TOLERANCE_KEYS]
+    if unknown:
+        raise MachineError(f"{where}.{unknown[0]}: unknown key ({', '.join(TOLERANCE_KEYS)})")
+    values = {}
+    for key, given in spec.items():
+        if key in ("backlash", "friction"):
+            values[key] = _number(given, f"{where}.{key}", positive=False)
+            if values[key] < 0:
+                raise MachineError(f"{where}.{key}: must be >= 0, got {given!r}")
+            continue
+        if not isinstance(given, list) or len(given) != 2:
+            raise MachineError(f"{where}.{key}: expected [low, high], got {given!r}")
+        lo, hi = (_number(v, f"{where}.{key}", positive=key in TOLERANCE_FACTORS) for v in given)
+        if lo > hi or (key == "delay" and lo < 0):
+            raise MachineError(f"{where}.{key}: expected 0 <= low <= high, got {given!r}"
+                               if key == "delay" else f"{where}.{key}: expected low <= high, got {given!r}")
+        values[key] = (lo, hi)
+    return Tolerance(**values)
 
 
 def _parse_kinematics(spec: object, where: str) -> KinematicParams:
@@ -219,7 +305,7 @@ def parse_machine(doc: object, source: str = "machine") -> Machine:
     missing = [n for n in names if n not in drive_spec]
     if missing:
         raise MachineError(f"{source}: drive.{missing[0]}: every axis needs a drive model")
-    drives = {n: _parse_drive(drive_spec[n], f"{source}: drive.{n}") for n in names}
+    drives = {n: parse_drive(drive_spec[n], f"{source}: drive.{n}") for n in names}
     kinematics = _parse_kinematics(doc.get("kinematics"), f"{source}: kinematics")
     return Machine(name=str(doc.get("name", source)), layout=layout, axes=axes, drives=drives,
                    kinematics=kinematics, home=_parse_home(doc.get("home"), axes, f"{source}: home"))

@@ -21,6 +21,7 @@ from cnc_msgs_py.gcode.document import job_document
 from cnc_msgs_py.heap import keep_freed_memory
 from cnc_msgs_py.job import job_id_of, parse_job
 from cnc_msgs_py.machine import MachineError, load_machine
+from cnc_msgs_py.plant import load_plant
 from cnc_msgs_py.progress import Progress
 from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.tool import tool_parser
@@ -53,6 +54,8 @@ def run_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, help="output directory (default runs/<timestamp>)")
     parser.add_argument("--timeout", type=float, default=900.0, help="wall-clock limit (s)")
     parser.add_argument("--namespace", default=NAMESPACE, help=f"the machine's namespace (default {NAMESPACE})")
+    parser.add_argument("--plant", type=Path, help="plant file: the bridge emulates drives that differ from the "
+                                                   "description (docs/machines.md); the planner never reads it")
     args = parser.parse_args(argv)
     out = args.out or Path("runs") / time.strftime("%Y%m%d-%H%M%S")
     if (out / "bag").exists():
@@ -60,6 +63,8 @@ def run_main(argv: list[str] | None = None) -> int:
     try:
         doc = job_document(args.job, args.machine)
         machine = load_machine(doc.get("machine") if isinstance(doc.get("machine"), str) else "")
+        plant = str(args.plant.resolve()) if args.plant else ""
+        load_plant(plant, machine)  # checked here: a bad plant file is bad input, not a failed run
     except (JobError, MachineError) as err:
         reason = f"machine: {err}" if isinstance(err, MachineError) else str(err)
         doc = locals().get("doc")
@@ -76,7 +81,7 @@ def run_main(argv: list[str] | None = None) -> int:
     progress = Progress()
     try:
         status = run_job(json.dumps(doc), job_id_of(doc), machine.name, out / "bag",
-                         timeout=args.timeout, progress=progress, namespace=args.namespace)
+                         timeout=args.timeout, progress=progress, namespace=args.namespace, plant=plant)
     except RunError as err:
         progress.close()
         return _fail("cnc-run", str(err), 3)

@@ -284,15 +284,18 @@ class Session:
 
 
 def run_job(text: str, job_id: str, machine: str, bag_dir: Path, *, timeout: float = 900.0,
-            progress: Callable[[dict], None] | None = None, namespace: str = topics.NAMESPACE) -> dict:
-    """Run one job document (JSON text) through both nodes, recording to ``bag_dir``.
+            progress: Callable[[dict], None] | None = None, namespace: str = topics.NAMESPACE,
+            plant: str = "") -> dict:
+    """Run one job document (JSON text) through both nodes, recording to ``bag_dir``;
+    ``plant``: a plant file the bridge emulates instead of the description.
 
     Returns the job's final status document.
 
     Raises:
         RunError: the nodes did not come up, or the job did not end within ``timeout``.
     """
-    with Session(machine, bag_dir, progress=progress, namespace=namespace) as session:
+    with Session(machine, bag_dir, progress=progress, namespace=namespace,
+                 bridge_params={"plant": plant} if plant else None) as session:
         session.submit(text)
         status = session.wait(job_id, timeout)
         if status["state"] != "rejected":

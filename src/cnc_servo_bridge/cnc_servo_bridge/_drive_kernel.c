@@ -192,12 +192,145 @@ static PyObject *run_py(PyObject *self, PyObject *args)
     Py_RETURN_NONE;
 }
 
+/* One joint's plant-only losses: Coulomb friction in the velocity loop (the velocity command
+ * it takes to break the axis away, m/s or rad/s) and backlash between motor and load (m or rad). */
+typedef struct {
+    double friction, backlash;
+} Losses;
+
+/* DriveModel.step with the losses for one joint and one period: the motor (position,
+ * velocity), the load after the backlash and the encoder reading of the load plus `noise`. */
+static inline double step_plant(const Drive *d, const Losses *l, double period, double p_ref, double v_ref,
+                                double a_ref, double noise, double *position, double *velocity, double *load,
+                                double *measured)
+{
+    const double error = p_ref - *measured;
+    double v_cmd = d->velocity_ff * v_ref + d->accel_gain * a_ref + d->kp * error;
+    v_cmd = v_cmd < -d->v_limit ? -d->v_limit : v_cmd;
+    v_cmd = v_cmd > d->v_limit ? d->v_limit : v_cmd;
+    double v_new;
+    if (l->friction > 0.0) {
+        /* friction opposes the motion (or, at rest, the command) and never reverses it */
+        const double dir = *velocity != 0.0 ? copysign(1.0, *velocity) : (v_cmd != 0.0 ? copysign(1.0, v_cmd) : 0.0);
+        const double v_eff = v_cmd - l->friction * dir;
+        v_new = v_eff + (*velocity - v_eff) * d->decay;
+        if (v_new * dir <= 0.0)
+            v_new = 0.0;
+    } else {
+        v_new = v_cmd + (*velocity - v_cmd) * d->decay;
+    }
+    double dv = v_new - *velocity;
+    dv = dv < -d->dv_limit ? -d->dv_limit : dv;
+    dv = dv > d->dv_limit ? d->dv_limit : dv;
+    v_new = *velocity + dv;
+    *position = *position + 0.5 * (*velocity + v_new) * period;
+    *velocity = v_new;
+    const double half = 0.5 * l->backlash;
+    if (*position - *load > half)
+        *load = *position - half;
+    else if (*position - *load < -half)
+        *load = *position + half;
+    *measured = rint(*load / d->resolution) * d->resolution + noise;
+    return error;
+}
+
+enum { L_P_REF, L_V_REF, L_A_REF, L_NOISE, L_POSITION, L_VELOCITY, L_LOAD, L_MEASURED, L_KP, L_VELOCITY_FF,
+       L_ACCEL_GAIN, L_DECAY, L_V_LIMIT, L_DV_LIMIT, L_RESOLUTION, L_FRICTION, L_BACKLASH, L_OUT, L_ARRAYS };
+
+static const char *const L_NAMES[L_ARRAYS] = {
+    "p_ref", "v_ref", "a_ref", "noise", "position", "velocity", "load", "measured", "kp", "velocity_ff",
+    "accel_gain", "decay", "v_limit", "dv_limit", "resolution", "friction", "backlash", "out"};
+
+static PyObject *run_plant_py(PyObject *self, PyObject *args)
+{
+    PyObject *obj[L_ARRAYS];
+    Py_buffer view[L_ARRAYS];
+    double period;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OOOOOOOOOOOOOOOOOdO:run_plant", &obj[L_P_REF], &obj[L_V_REF], &obj[L_A_REF],
+                          &obj[L_NOISE], &obj[L_POSITION], &obj[L_VELOCITY], &obj[L_LOAD], &obj[L_MEASURED],
+                          &obj[L_KP], &obj[L_VELOCITY_FF], &obj[L_ACCEL_GAIN], &obj[L_DECAY], &obj[L_V_LIMIT],
+                          &obj[L_DV_LIMIT], &obj[L_RESOLUTION], &obj[L_FRICTION], &obj[L_BACKLASH], &period,
+                          &obj[L_OUT]))
+        return NULL;
+    int taken = 0;
+    while (taken < L_ARRAYS) {
+        int writable = taken == L_POSITION || taken == L_VELOCITY || taken == L_LOAD || taken == L_MEASURED
+                       || taken == L_OUT;
+        if (take(obj[taken], &view[taken], writable, L_NAMES[taken]) < 0)
+            break;
+        taken++;
+    }
+    int ok = taken == L_ARRAYS;
+    Py_ssize_t joints = ok ? values(&view[L_POSITION]) : 0, rows = 0;
+    if (ok && (joints == 0 || values(&view[L_P_REF]) % joints != 0)) {
+        PyErr_Format(PyExc_ValueError, "p_ref: %zd values are not rows of %zd joints", values(&view[L_P_REF]), joints);
+        ok = 0;
+    }
+    if (ok)
+        rows = values(&view[L_P_REF]) / joints;
+    for (int a = 0; ok && a < L_OUT; a++) {
+        Py_ssize_t expected = a <= L_NOISE ? rows * joints : joints;
+        if (values(&view[a]) != expected) {
+            PyErr_Format(PyExc_ValueError, "%s: expected %zd values, got %zd", L_NAMES[a], expected, values(&view[a]));
+            ok = 0;
+        }
+    }
+    if (ok && values(&view[L_OUT]) != 3 * rows * joints) {
+        PyErr_Format(PyExc_ValueError, "out: expected %zd values, got %zd", 3 * rows * joints, values(&view[L_OUT]));
+        ok = 0;
+    }
+    Drive *drives = NULL;
+    Losses *losses = NULL;
+    if (ok) {
+        const double *d[L_ARRAYS];
+        for (int a = 0; a < L_ARRAYS; a++)
+            d[a] = (const double *)view[a].buf;
+        drives = PyMem_Malloc((size_t)joints * sizeof(Drive));
+        losses = PyMem_Malloc((size_t)joints * sizeof(Losses));
+        ok = drives != NULL && losses != NULL;
+        if (!ok)
+            PyErr_NoMemory();
+        for (Py_ssize_t j = 0; ok && j < joints; j++) {
+            drives[j] = (Drive){d[L_KP][j], d[L_VELOCITY_FF][j], d[L_ACCEL_GAIN][j], d[L_DECAY][j], d[L_V_LIMIT][j],
+                                d[L_DV_LIMIT][j], d[L_RESOLUTION][j]};
+            losses[j] = (Losses){d[L_FRICTION][j], d[L_BACKLASH][j]};
+        }
+        if (ok) {
+            double *position = view[L_POSITION].buf, *velocity = view[L_VELOCITY].buf, *load = view[L_LOAD].buf;
+            double *measured = view[L_MEASURED].buf, *out = view[L_OUT].buf;
+            const Py_ssize_t plane = rows * joints;
+            Py_BEGIN_ALLOW_THREADS
+            for (Py_ssize_t k = 0; k < plane; k += joints)
+                for (Py_ssize_t j = 0; j < joints; j++) {
+                    out[k + j] = measured[j];
+                    out[plane + k + j] = velocity[j];
+                    out[2 * plane + k + j] = step_plant(&drives[j], &losses[j], period, d[L_P_REF][k + j],
+                                                        d[L_V_REF][k + j], d[L_A_REF][k + j], d[L_NOISE][k + j],
+                                                        &position[j], &velocity[j], &load[j], &measured[j]);
+                }
+            Py_END_ALLOW_THREADS
+        }
+    }
+    PyMem_Free(drives);
+    PyMem_Free(losses);
+    for (int a = 0; a < taken; a++)
+        PyBuffer_Release(&view[a]);
+    if (!ok)
+        return NULL;
+    Py_RETURN_NONE;
+}
+
 static PyMethodDef METHODS[] = {
     {"run", run_py, METH_VARARGS,
      "run(p_ref, v_ref, a_ref, position, velocity, measured, kp, velocity_ff, accel_gain, decay,\n"
      "    v_limit, dv_limit, resolution, period, out): DriveModel.step over every row of the\n"
      "references (float64, C order, rows x joints), in place on the state arrays; out (3 x rows\n"
      "x joints) receives the measured position, velocity and following error before each step."},
+    {"run_plant", run_plant_py, METH_VARARGS,
+     "run_plant(p_ref, v_ref, a_ref, noise, position, velocity, load, measured, kp, velocity_ff, accel_gain,\n"
+     "    decay, v_limit, dv_limit, resolution, friction, backlash, period, out): run with a plant's\n"
+     "    friction, backlash and encoder noise (rows x joints, added to each reading)."},
     {NULL, NULL, 0, NULL}};
 
 static struct PyModuleDef MODULE = {PyModuleDef_HEAD_INIT, "_drive_kernel",

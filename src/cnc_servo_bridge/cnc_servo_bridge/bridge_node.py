@@ -35,6 +35,7 @@ from cnc_msgs_py import qos, topics, trajectory_bytes
 from cnc_msgs_py.machine import MachineError, load_machine
 from cnc_msgs_py.node import run_node
 from cnc_msgs_py.parameters import Param, declare, value
+from cnc_msgs_py.plant import load_plant, outside_tolerance
 from cnc_msgs_py.units import NS
 
 from .feedback_msg import ClockBytes, FeedbackBytes
@@ -47,6 +48,9 @@ PARAMETERS = {
                              "false: stay unconfigured until change_state", read_only=True),
     "machine": Param("mill3", "machine description config/machines/<name>.yaml (or a path), "
                               "the one the planner reads", at_configure=True),
+    "plant": Param("", "plant file (YAML): drives that differ from the description, emulated while "
+                       "the planner keeps planning for the description (empty: the description itself)",
+                   at_configure=True),
     "servo_period": Param(0.001, "drive-model step", "s", (1e-4, 0.01), at_configure=True),
     "simulation": Param(True, "publish /clock and run faster than real time; false: step on "
                               "the wall clock", at_configure=True),
@@ -99,9 +103,10 @@ class BridgeNode(LifecycleNode):
         """Load and check the machine description, create the drive model (drives disabled)."""
         try:
             machine = load_machine(value(self, "machine"))
+            plant = load_plant(value(self, "plant"), machine)
             self.period_ns = round(value(self, "servo_period") * NS)
             start = value(self, "start_position") or machine.home_position
-            self.loop = ServoLoop(machine, self.period_ns, np.asarray(start, dtype=float), enabled=False)
+            self.loop = ServoLoop(machine, self.period_ns, np.asarray(start, dtype=float), enabled=False, plant=plant)
         except (MachineError, ValueError) as err:
             self.failure = f"configure: {err}"
             self.get_logger().error(self.failure)
@@ -144,7 +149,11 @@ class BridgeNode(LifecycleNode):
         self.pacing = WallPacing(self.period_ns)
         self.timer = self.create_timer(0.001 if self.simulation else value(self, "wake_period"), self.run)
         self.get_logger().info(f"configured for '{machine.name}' ({'simulation' if self.simulation else 'real time'})"
-                               ", drives disabled")
+                               f", plant {plant.name}, drives disabled")
+        self.beyond_tolerance = outside_tolerance(machine, plant)
+        if self.beyond_tolerance:
+            self.get_logger().warning(f"plant {plant.name} lies outside the description's tolerance: "
+                                      f"{'; '.join(self.beyond_tolerance)}")
         return SUCCESS
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -277,7 +286,9 @@ class BridgeNode(LifecycleNode):
             message=alarm or ("ok" if enabled else DRIVES_DISABLED),
             values=[KeyValue(key=topics.PID_KEY, value=str(os.getpid())),
                     KeyValue(key=topics.DRIVES_KEY, value=topics.DRIVES_ON if enabled else topics.DRIVES_OFF),
-                    KeyValue(key="buffer_s", value=f"{self.loop.buffer.level_s(self.t_ns):.3f}")]
+                    KeyValue(key="buffer_s", value=f"{self.loop.buffer.level_s(self.t_ns):.3f}"),
+                    KeyValue(key=topics.PLANT_KEY, value=self.loop.plant.name),
+                    KeyValue(key=topics.PLANT_OUTSIDE_KEY, value="; ".join(self.beyond_tolerance))]
             + [KeyValue(key=f"max_following_error.{j}", value=f"{e:.9f}")
                for j, e in zip(self.joints, self.loop.max_following_error)],
         )

@@ -1,6 +1,7 @@
 """Servo drive model: one position loop with feed-forward over a first-order velocity loop.
 
-Per axis and servo period T (all joints vectorised):
+Per axis and servo period T (all joints vectorised), the reference reaching the drive
+its transport delay (whole periods) after it was commanded:
 
     e      = p_ref - p_measured                         following error
     v_cmd  = velocity_ff * v_ref + accel_ff * velocity_lag * a_ref + kp * e
@@ -10,15 +11,21 @@ Per axis and servo period T (all joints vectorised):
     p'     = p + (v + v') / 2 * T
     p_measured = p' quantised to the encoder resolution
 
+A real axis adds losses (docs/machines.md): Coulomb friction f makes v_cmd - f * sign(v)
+the velocity loop's target and stops the axis (v' = 0) rather than reversing it through
+the friction, so that at rest it holds until |v_cmd| exceeds f; backlash b lets the load,
+which the encoder (a linear scale) reads, trail the motor p by up to b/2 either way; encoder
+noise adds a seeded normal draw to every reading.
+
 With accel_ff = 1 the velocity loop's lag is cancelled for slow references; the planner
 uses the same model (this module) to predict and pre-compensate the lag.
 
 ``step`` is the reference implementation, one period at a time in numpy. ``run`` and
 ``simulate`` advance many periods at once through a compiled kernel that performs the
 same floating-point operations in the same order, so both give the same positions
-(tested to 1e-12 m, clamps and quantisation included) at a few hundred times the speed:
-the planner's safety searches and the bridge's block stepping use it. The kernel is a
-small C function (_drive_kernel.c) that the package's setup.py compiles when it is
+(tested to 1e-12 m, clamps, losses and quantisation included) at a few hundred times the
+speed: the planner's safety searches and the bridge's block stepping use it. The kernel is
+a small C function (_drive_kernel.c) that the package's setup.py compiles when it is
 installed, so a node loads a few kilobytes of machine code, not a JIT compiler (numba
 and LLVM cost each node about 125 MiB of resident memory).
 """
@@ -28,9 +35,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cnc_msgs_py.machine import Machine
+from cnc_msgs_py.machine import Drive, Machine
 
 from ._drive_kernel import run as _run
+from ._drive_kernel import run_plant as _run_plant
 
 VELOCITY_HEADROOM = 1.2
 ACCELERATION_HEADROOM = 1.5
@@ -38,30 +46,43 @@ ACCELERATION_HEADROOM = 1.5
 
 @dataclass
 class DriveState:
-    """True position and velocity of every joint, and what the encoders report."""
+    """Every joint's motor (true position and velocity), its load (the motor's position but
+    for backlash) and what the encoders report."""
 
     position: np.ndarray
     velocity: np.ndarray
     measured: np.ndarray
+    load: np.ndarray
 
 
 class DriveModel:
     """The servo drives of one machine, stepped once per servo period."""
 
-    def __init__(self, machine: Machine, servo_period: float, joints: tuple[str, ...] | None = None):
+    def __init__(self, machine: Machine, servo_period: float, joints: tuple[str, ...] | None = None,
+                 drives: dict[str, Drive] | None = None, seed: int = 0):
+        """``drives``: the drives to emulate instead of the description's (a plant, or a
+        corner of the description's tolerance); ``seed``: of their encoder noise, if any."""
         self.joints = joints or machine.joint_names
         self.period = servo_period
-        drives = [machine.drives[j] for j in self.joints]
+        chosen = [(drives or machine.drives)[j] for j in self.joints]
         axes = [machine.drive_axes[j] for j in self.joints]
-        self.kp = np.array([d.kp for d in drives])
-        self.velocity_ff = np.array([d.velocity_ff for d in drives])
-        self.accel_ff = np.array([d.accel_ff for d in drives])
-        self.lag = np.array([d.velocity_lag for d in drives])
-        self.resolution = np.array([d.resolution for d in drives])
-        self.following_error_limit = np.array([d.following_error_limit for d in drives])
+        self.kp = np.array([d.kp for d in chosen])
+        self.velocity_ff = np.array([d.velocity_ff for d in chosen])
+        self.accel_ff = np.array([d.accel_ff for d in chosen])
+        self.lag = np.array([d.velocity_lag for d in chosen])
+        self.resolution = np.array([d.resolution for d in chosen])
+        self.following_error_limit = np.array([d.following_error_limit for d in chosen])
+        self.delay_steps = np.array([round(d.delay / servo_period) for d in chosen], dtype=np.intp)
+        self.friction = np.array([d.friction for d in chosen])
+        self.backlash = np.array([d.backlash for d in chosen])
+        self.noise = np.array([d.noise for d in chosen])
+        # The plain kernel where no joint has losses: the described drives, bit for bit as before.
+        self.lossy = bool(np.any(self.friction > 0) or np.any(self.backlash > 0) or np.any(self.noise > 0))
+        self.rng = np.random.default_rng(seed)
         self.decay = np.exp(-servo_period / self.lag)
         self.v_limit = VELOCITY_HEADROOM * np.array([a.max_velocity for a in axes])
         self.dv_limit = ACCELERATION_HEADROOM * np.array([a.max_acceleration for a in axes]) * servo_period
+        self.history: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # references still in transit
         self.state = self.reset(np.zeros(len(self.joints)))
 
     def quantise(self, position: np.ndarray) -> np.ndarray:
@@ -70,20 +91,70 @@ class DriveModel:
     def reset(self, position: np.ndarray) -> DriveState:
         """Put the drives at rest at a position (power-up, or after a restart)."""
         position = np.asarray(position, dtype=float).copy()
-        self.state = DriveState(position, np.zeros_like(position), self.quantise(position))
+        self.state = DriveState(position, np.zeros_like(position), self.quantise(position), position.copy())
+        depth = int(self.delay_steps.max(initial=0))
+        if depth:
+            self.history = (np.tile(position, (depth, 1)), np.zeros((depth, position.size)),
+                            np.zeros((depth, position.size)))
         return self.state
 
+    def snapshot(self) -> tuple:
+        """Everything ``run`` changes (state, references in transit, noise draws), for ``restore``."""
+        s = self.state
+        return (DriveState(s.position.copy(), s.velocity.copy(), s.measured.copy(), s.load.copy()),
+                self.history, self.rng.bit_generator.state)
+
+    def restore(self, snapshot: tuple) -> None:
+        """Back to a ``snapshot``: a block taken again up to a step that trips."""
+        self.state, self.history, self.rng.bit_generator.state = snapshot
+
+    def displace(self, joint: int, offset: float) -> None:
+        """Move one joint's motor and load by ``offset`` (a crash, a slipping coupling)."""
+        self.state.position[joint] += offset
+        self.state.load[joint] += offset
+
+    def _delayed(self, p_ref: np.ndarray, v_ref: np.ndarray, a_ref: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The references (rows, joints) as each drive receives them, its delay later; the
+        last ones stay in transit for the next call."""
+        if self.history is None:
+            return p_ref, v_ref, a_ref
+        depth = len(self.history[0])
+        rows = (depth - self.delay_steps)[None, :] + np.arange(len(p_ref))[:, None]
+        cols = np.arange(len(self.joints))[None, :]
+        seen, kept = [], []
+        for past, ref in zip(self.history, (p_ref, v_ref, a_ref)):
+            extended = np.concatenate((past, ref))
+            seen.append(np.ascontiguousarray(extended[rows, cols]))
+            kept.append(extended[-depth:].copy())
+        self.history = tuple(kept)  # type: ignore[assignment]
+        return tuple(seen)
+
+    def _noise(self, rows: int) -> np.ndarray:
+        """Encoder noise of ``rows`` readings per joint (zeros on noiseless encoders)."""
+        if not np.any(self.noise > 0):
+            return np.zeros((rows, len(self.joints)))
+        return self.rng.standard_normal((rows, len(self.joints))) * self.noise
+
     def step(self, p_ref: np.ndarray, v_ref: np.ndarray, a_ref: np.ndarray) -> np.ndarray:
-        """Advance one servo period towards the reference; returns the following error."""
+        """Advance one servo period towards the reference; returns the following error
+        (against the reference as commanded, before its transport delay)."""
         s = self.state
         error = p_ref - s.measured
-        v_cmd = self.velocity_ff * v_ref + (self.accel_ff * self.lag) * a_ref + self.kp * error
+        p_in, v_in, a_in = (x[0] for x in self._delayed(*(np.reshape(np.asarray(x, float), (1, -1))
+                                                          for x in (p_ref, v_ref, a_ref))))
+        v_cmd = self.velocity_ff * v_in + (self.accel_ff * self.lag) * a_in + self.kp * (p_in - s.measured)
         v_cmd = np.clip(v_cmd, -self.v_limit, self.v_limit)
-        v_new = v_cmd + (s.velocity - v_cmd) * self.decay
+        direction = np.where(s.velocity != 0.0, np.sign(s.velocity), np.sign(v_cmd))
+        target = np.where(self.friction > 0.0, v_cmd - self.friction * direction, v_cmd)
+        v_new = target + (s.velocity - target) * self.decay
+        v_new = np.where((self.friction > 0.0) & (v_new * direction <= 0.0), 0.0, v_new)
         v_new = s.velocity + np.clip(v_new - s.velocity, -self.dv_limit, self.dv_limit)
         s.position = s.position + 0.5 * (s.velocity + v_new) * self.period
         s.velocity = v_new
-        s.measured = self.quantise(s.position)
+        s.load = np.clip(s.load, s.position - 0.5 * self.backlash, s.position + 0.5 * self.backlash)
+        s.measured = self.quantise(s.load)
+        if self.lossy:
+            s.measured = s.measured + self._noise(1)[0]
         return error
 
     def run(
@@ -97,11 +168,21 @@ class DriveModel:
         p_ref, v_ref, a_ref = (np.ascontiguousarray(x, dtype=float).reshape(-1, len(self.joints))
                                for x in (p_ref, v_ref, a_ref))
         s = self.state
-        s.position, s.velocity, s.measured = (np.array(x, dtype=float) for x in (s.position, s.velocity, s.measured))
+        s.position, s.velocity, s.measured, s.load = (np.array(x, dtype=float)
+                                                      for x in (s.position, s.velocity, s.measured, s.load))
         out = np.empty((3, *p_ref.shape))
-        _run(p_ref, v_ref, a_ref, s.position, s.velocity, s.measured, self.kp, self.velocity_ff,
-             self.accel_ff * self.lag, self.decay, self.v_limit, self.dv_limit, self.resolution,
-             self.period, out)
+        received = self._delayed(p_ref, v_ref, a_ref)
+        if self.lossy:
+            _run_plant(*received, self._noise(len(p_ref)), s.position, s.velocity, s.load, s.measured, self.kp,
+                       self.velocity_ff, self.accel_ff * self.lag, self.decay, self.v_limit, self.dv_limit,
+                       self.resolution, self.friction, self.backlash, self.period, out)
+        else:
+            _run(*received, s.position, s.velocity, s.measured, self.kp, self.velocity_ff,
+                 self.accel_ff * self.lag, self.decay, self.v_limit, self.dv_limit, self.resolution,
+                 self.period, out)
+            s.load = s.position.copy()
+        if self.history is not None:  # the error against the reference as commanded
+            out[2] = p_ref - out[0]
         return out[0], out[1], out[2]
 
     def simulate(
@@ -119,9 +200,11 @@ class DriveModel:
 
 
 def warm_up() -> None:
-    """Run the compiled kernel once at a node's start, so a kernel that does not load or
+    """Run the compiled kernels once at a node's start, so a kernel that does not load or
     run fails there and not on the first job's clock."""
     one = np.zeros((1, 1))
     state = [np.zeros(1) for _ in range(3)]
     _run(one, one, one, *state, *(np.ones(1) for _ in range(4)), np.ones(1), np.ones(1), np.ones(1),
          1e-3, np.empty((3, 1, 1)))
+    _run_plant(one, one, one, one, *(np.zeros(1) for _ in range(4)), *(np.ones(1) for _ in range(7)),
+               np.zeros(1), np.zeros(1), 1e-3, np.empty((3, 1, 1)))

@@ -17,6 +17,7 @@ import numpy as np
 from ruckig import Trajectory
 
 from cnc_msgs_py.machine import Machine
+from cnc_msgs_py.plant import Plant, description_plant
 
 from .drive import DriveModel, warm_up
 from .setpoints import REST_VELOCITY, SetpointBuffer, SetpointError
@@ -45,14 +46,27 @@ def _check_start(machine: Machine, start: np.ndarray) -> None:
             raise ValueError(f"start_position: {joint} at {position:g} is outside its travel")
 
 
+def _check_delays(plant: Plant, period_ns: int) -> None:
+    """A transport delay is a whole number of servo periods: anything else is a typo."""
+    for joint, drive in plant.drives.items():
+        periods = drive.delay * 1e9 / period_ns
+        if abs(periods - round(periods)) > 1e-6:
+            raise ValueError(f"plant {plant.name}: drive.{joint}.delay: {drive.delay:g} s is not a whole number of "
+                             f"servo periods ({period_ns / 1e9:g} s)")
+
+
 class ServoLoop:
     def __init__(self, machine: Machine, servo_period_ns: int, start_position: np.ndarray | None = None,
-                 enabled: bool = True):
+                 enabled: bool = True, plant: Plant | None = None):
+        """``plant``: the drives emulated, if not the description's (the setpoint rules and
+        the axis limits stay the description's, as a real NC's)."""
         warm_up()  # the drive kernel, now: loading it at the first block would stall a real-time loop
         self.machine = machine
         self.joints = machine.joint_names
         self.period_ns = servo_period_ns
-        self.drives = DriveModel(machine, servo_period_ns / 1e9)
+        self.plant = plant or description_plant(machine)
+        _check_delays(self.plant, servo_period_ns)
+        self.drives = DriveModel(machine, servo_period_ns / 1e9, drives=self.plant.drives, seed=self.plant.seed)
         self.buffer = SetpointBuffer(machine)
         start = np.zeros(len(self.joints)) if start_position is None else np.asarray(start_position, float)
         _check_start(machine, start)
@@ -140,8 +154,7 @@ class ServoLoop:
         if block is None or len(block[0]) < 2:
             return [self.step(t_ns)]
         p, v, a = block
-        state = self.drives.state
-        saved = (state.position.copy(), state.velocity.copy(), state.measured.copy())
+        saved = self.drives.snapshot()
         measured, velocity, error = self.drives.run(p, v, a)
         tripped = (np.any(np.abs(error) > self.drives.following_error_limit, axis=1)
                    | np.any(self.buffer.outside_travel(measured), axis=1))
@@ -149,7 +162,7 @@ class ServoLoop:
         if tripped.any():
             n = int(np.argmax(tripped)) + 1
             if n < len(p):  # take the block again up to the step that trips
-                state.position, state.velocity, state.measured = saved
+                self.drives.restore(saved)
                 measured, velocity, error = self.drives.run(p[:n], v[:n], a[:n])
         self.max_following_error = np.maximum(self.max_following_error, np.abs(error[:n]).max(axis=0))
         self.reference = (p[n - 1].copy(), v[n - 1].copy(), a[n - 1].copy())
@@ -175,7 +188,7 @@ class ServoLoop:
         """Fault injection: displace one axis (a crash, a slipping coupling) by ``offset``."""
         if joint not in self.joints:
             raise ValueError(f"inject_fault: unknown joint '{joint}'")
-        self.drives.state.position[self.joints.index(joint)] += offset
+        self.drives.displace(self.joints.index(joint), offset)
 
     def _reference_at(self, t_ns: int):
         if self._stop is not None:

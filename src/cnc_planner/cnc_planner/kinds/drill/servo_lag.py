@@ -6,6 +6,13 @@ The planner runs the bridge's drive model on its own commands and moves the Z de
 the next X/Y start by whole servo periods until the feedback never shows the tip below R
 with X/Y off the hole; both gaps start at the smallest value that keeps the commands
 themselves safe (their floors), so the cycle loses only what the feedback demands.
+
+A real machine is not its description: the margins are those of the worst plant, the
+described drives and every corner of their tolerance (cnc_msgs_py.plant.tolerance_corners),
+X/Y and Z each at a corner of its own. The axes do not interact, and with X/Y off the hole
+a sample is unsafe on some Z drive exactly when the lowest of the Z drives' tips is below
+the plane: so each X/Y drive's margins are measured beside that lowest Z. The cycle is then
+safe on every plant inside the tolerance (test_drill_tolerance.py draws them).
 """
 from __future__ import annotations
 
@@ -14,7 +21,8 @@ from typing import Callable
 
 import numpy as np
 
-from cnc_msgs_py.machine import Machine
+from cnc_msgs_py.machine import Drive, Machine
+from cnc_msgs_py.plant import tolerance_corners
 from cnc_servo_bridge.drive import DriveModel
 
 from cnc_planner.kinds.drill._lag_kernel import margins as lag_scan
@@ -25,25 +33,34 @@ from cnc_planner.motion.plan_check import BLOCK_S
 from cnc_planner.motion.timeline import Plan
 
 SAFETY_ROUNDS = 40  # drive-model rounds before giving up on a safe timing
+XYZ = ("x", "y", "z")
 
 # A cycle written into a builder for given gaps (e_down, e_up) and air accelerations
 # (overlap.py, conventional.py); the last argument asks for each air move's energy.
 Emit = Callable[[PlanBuilder, float, np.ndarray, np.ndarray, np.ndarray, bool], list[dict]]
 
 
-def _feedback(machine: Machine, plan: Plan, ts: np.ndarray, period: float) -> np.ndarray:
-    """X/Y/Z feedback (len(ts), 3) of the drives from rest at the plan's position at ts[0],
-    the plan sampled and simulated BLOCK_S at a time (the same values as in one piece,
-    without the whole cycle's setpoints in memory)."""
-    drives = DriveModel(machine, period, ("x", "y", "z"))
-    out = np.empty((len(ts), 3))
+def _feedback(machine: Machine, plan: Plan, ts: np.ndarray, period: float, joints: tuple[str, ...],
+              drives: list[Drive]) -> np.ndarray:
+    """Feedback (plants, len(ts), len(joints)) of each drive (one for every joint listed) from
+    rest at the plan's position at ts[0]; the plan sampled BLOCK_S at a time (the same values
+    as in one piece, without the whole cycle's setpoints in memory)."""
+    models = [DriveModel(machine, period, joints, drives={j: d for j in joints}) for d in drives]
+    out = np.empty((len(drives), len(ts), len(joints)))
     block = max(2, int(BLOCK_S / period))
     for lo in range(0, len(ts), block):
-        p, v, a = plan.sample(ts[lo:lo + block], ("x", "y", "z"))
-        if lo == 0:
-            drives.reset(p[0])
-        out[lo:lo + block] = drives.run(p, v, a)[0]
+        p, v, a = plan.sample(ts[lo:lo + block], joints)
+        for model, fb in zip(models, out):
+            if lo == 0:
+                model.reset(p[0])
+            fb[lo:lo + block] = model.run(p, v, a)[0]
     return out
+
+
+def drives_to_check(machine: Machine, joint: str) -> list[Drive]:
+    """The described drive of a joint and the corners of its tolerance."""
+    described = machine.drives[joint]
+    return [described] + [d for d in tolerance_corners(described) if d != described]
 
 
 class ServoLag:
@@ -56,29 +73,40 @@ class ServoLag:
         self.start = start
         self.z = z
         self.n = len(cycle.holes)
+        # X and Y move together: one drive for both (their descriptions' corners, if they differ, each)
+        self.xy_drives = drives_to_check(machine, "x") if machine.drives["x"] == machine.drives["y"] else None
+        self.z_drives = drives_to_check(machine, "z")
 
     def lag_margins(self, plan: Plan, infos: list[dict], t0: float) -> tuple[np.ndarray, np.ndarray]:
         """Per hole, in servo periods, from the drive model's feedback: how late X/Y settles
         after the tip went below the plane of the move into the hole (down) and how early X/Y
         leaves before the tip is back above the plane of the move out of it (up). Positive =
-        unsafe by that many samples, negative = slack."""
+        unsafe by that many samples, negative = slack. The worst over every plant checked."""
         c = self.cycle
         period = c.servo_period
         k0 = math.floor(t0 / period + 1e-9)
         ts = (k0 + np.arange(math.ceil((plan.duration - t0) / period) + 50)) * period
-        fb = _feedback(self.machine, plan, ts, period)
         starts = np.searchsorted(ts, [info["s1"] for info in infos] + [ts[-1] + 1.0, ts[-1] + 1.0])
-        # Per hole, from its S1 (or where the tip came back above the previous hole's
-        # plane) to the next hole's S1, in one compiled pass (_lag_kernel.c): X/Y moves into
-        # the hole above one plane and out of it above the next's; one visit below both
-        # (pecks stay below R), its bottom the hole's; off-hole samples before the bottom
-        # are a late arrival (down: after the tip went below the plane into the hole),
-        # after it an early exit (up: before the tip is back above the plane out of it).
-        down, up = np.zeros(self.n), np.zeros(self.n)
-        lag_scan(fb, starts.astype(np.intp), np.array([c.air_plane(i) for i in range(self.n)]),
-                 np.array([c.air_plane(i + 1) for i in range(self.n)]), np.array([info["x"] for info in infos]),
-                 np.array([info["y"] for info in infos]), c.xy_tolerance, down, up)
-        return down, up
+        planes = (np.array([c.air_plane(i) for i in range(self.n)]), np.array([c.air_plane(i + 1) for i in range(self.n)]))
+        holes = (np.array([info["x"] for info in infos]), np.array([info["y"] for info in infos]))
+        lowest_z = _feedback(self.machine, plan, ts, period, ("z",), self.z_drives)[:, :, 0].min(axis=0)
+        worst_down, worst_up = np.full(self.n, -np.inf), np.full(self.n, -np.inf)
+        for xy in self._xy_feedback(plan, ts, period):
+            down, up = np.zeros(self.n), np.zeros(self.n)
+            lag_scan(np.column_stack([xy, lowest_z]), starts.astype(np.intp), *planes, *holes, c.xy_tolerance,
+                     down, up)
+            np.maximum(worst_down, down, out=worst_down)
+            np.maximum(worst_up, up, out=worst_up)
+        return worst_down, worst_up
+
+    def _xy_feedback(self, plan: Plan, ts: np.ndarray, period: float) -> np.ndarray:
+        """X/Y feedback (plants, len(ts), 2) of every X/Y drive pairing checked."""
+        if self.xy_drives is not None:
+            return _feedback(self.machine, plan, ts, period, ("x", "y"), self.xy_drives)
+        # X and Y described differently: each at each of its own corners
+        xs = _feedback(self.machine, plan, ts, period, ("x",), drives_to_check(self.machine, "x"))[:, :, 0]
+        ys = _feedback(self.machine, plan, ts, period, ("y",), drives_to_check(self.machine, "y"))[:, :, 0]
+        return np.stack(np.broadcast_arrays(xs[:, None, :], ys[None, :, :]), axis=-1).reshape(-1, len(ts), 2)
 
     def safe_gaps(self, emit: Emit, t0: float, e_down: np.ndarray, e_up: np.ndarray,
                   floor_down: np.ndarray, floor_up: np.ndarray, rounds: int = SAFETY_ROUNDS

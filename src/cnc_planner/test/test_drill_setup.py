@@ -25,8 +25,9 @@ def drill_job(machine: str, setup: dict, holes=HOLES, depth: float = 5.0) -> obj
     })
 
 
-BOTTOM_COMPENSATION = 3e-5  # m: the Z command turns this close to the depth, so that the
-# drive's feedback turns at it (kinds/drill/bottom.py; the feedback is checked over topics)
+BOTTOM_COMPENSATION = 8e-5  # m: the Z command turns this close to the depth, so that the
+# drive's feedback turns at it, raised by the overshoot of the deepest drive inside the
+# tolerance (kinds/drill/bottom.py; the feedback is checked over topics)
 
 
 def bottoms(plan, joints=("x", "y", "z")) -> np.ndarray:
@@ -107,8 +108,9 @@ def test_tilted_setup_drills_tilted_holes(layout):
         off = np.min(np.hypot(tip[below, None, 0] - program[None, :, 0], tip[below, None, 1] - program[None, :, 1]),
                      axis=1)
         assert off.max() < 1e-5 + 5e-7, off.max()  # the tolerance, give or take encoder counts
-        # (the Z feedback overshoots the bottom by ~22 um, as on the 3-axis mill)
-        assert tip[:, 2].min() == pytest.approx(-mm(5.0), abs=3e-5)
+        # never below the depth; short of it by at most what the deepest drive inside the
+        # tolerance would overshoot (kinds/drill/bottom.py)
+        assert -mm(5.0) - 5e-7 <= tip[:, 2].min() <= -mm(5.0) + BOTTOM_COMPENSATION
     commanded, _ = kin.fk_many(dict(zip(joints, p[cycle][:, cols].T)))
     assert commanded[:, 2].min() == pytest.approx(-mm(5.0), abs=BOTTOM_COMPENSATION)
     for name in machine.linear_axes:

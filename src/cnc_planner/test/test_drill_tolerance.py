@@ -36,13 +36,17 @@ def planned(pitch: float, depth: float) -> tuple[DrillCycle, np.ndarray, tuple[n
     return cycle, ts, plan.sample(ts, XYZ)
 
 
-def violations(pitch: float, depth: float, drives: dict) -> int:
-    """X/Y samples off the hole while the tip is below R, on the plant's feedback."""
+def judged(pitch: float, depth: float, drives: dict) -> dict:
+    """The analyser's verdict on the plant's feedback to the planned row (depths in mm)."""
     cycle, ts, (p, v, a) = planned(pitch, depth)
     feedback, _ = DriveModel(MILL, PERIOD, XYZ, drives=drives).simulate(p, v, a)
-    found = analyze_drilling(ts, feedback[:, 0], feedback[:, 1], feedback[:, 2], cycle.holes, cycle.r_z,
-                             cycle.xy_tolerance)
-    return found["safety_violations"]
+    return analyze_drilling(ts, feedback[:, 0], feedback[:, 1], feedback[:, 2], cycle.holes, cycle.r_z,
+                            cycle.xy_tolerance, cycle.surface_z)
+
+
+def violations(pitch: float, depth: float, drives: dict) -> int:
+    """X/Y samples off the hole while the tip is below R, on the plant's feedback."""
+    return judged(pitch, depth, drives)["safety_violations"]
 
 
 def drive_within(draw, joint: str):
@@ -65,6 +69,15 @@ def plants_within(draw) -> dict:
 def test_no_xy_motion_below_r_on_any_plant_inside_the_tolerance(plant, geometry):
     assert outside_tolerance(MILL, Plant("drawn", {**MILL.drives, **plant})) == []
     assert violations(*geometry, plant) == 0
+
+
+@settings(max_examples=25, deadline=None)
+@given(plant=plants_within(), geometry=st.sampled_from(GEOMETRIES))
+def test_no_plant_inside_the_tolerance_drills_deeper_than_programmed(plant, geometry):
+    """Material is left rather than cut: the deepest corner sets the turning point."""
+    depths = [h["depth_mm"] for h in judged(*geometry, plant)["holes"]]
+    assert max(depths) <= geometry[1] * 1e3 + 1e-4  # mm, within an encoder count
+    assert min(depths) >= geometry[1] * 1e3 - 0.08  # short by at most the tolerance's overshoot
 
 
 def test_the_corners_themselves_are_safe():

@@ -152,7 +152,8 @@ def _inverse_response(drive: DriveModel, n: int, band: tuple[float, float] = INV
     velocity with the trapezoidal rule; our correction reaches it as p_ref with its central
     differences as v_ref and a_ref. Hence y = G*(K*p_ref - kp*y) with
     G = (1-decay)*T*(1+z) / (2*(z-decay)*(z-1)) and K = ff*D1 + af*lag*D2 + kp, and the
-    inverse is (1/G + kp)/K. G vanishes at half the servo rate (trapezoidal rule), so the
+    inverse is (1/G + kp)/K, times z^d for a transport delay of d periods (the drive receives
+    p_ref d periods late, so y = G*(K*z^-d*p_ref - kp*y)). G vanishes at half the servo rate (trapezoidal rule), so the
     inverse is faded out over `band`; the vibration lives far below it.
 
     z, 1/z and the fade are the same for every joint, and only the bins the fade keeps are
@@ -171,10 +172,12 @@ def _inverse_response(drive: DriveModel, n: int, band: tuple[float, float] = INV
     z_less_1, z_plus_1, central, second = z - 1, 1 + z, z - z_inv, z - 2 + z_inv
     out = np.zeros((f.size, np.ravel(drive.kp).size), dtype=complex)
     fade, within = fade[kept], out[:below.size]  # the bins kept: f below hi, fade above 0
-    for j, (kp, ff, af, lag, decay) in enumerate(zip(*(np.ravel(x).tolist() for x in (
-            drive.kp, drive.velocity_ff, drive.accel_ff, drive.lag, drive.decay)))):
+    for j, (kp, ff, af, lag, decay, delay) in enumerate(zip(*(np.ravel(x).tolist() for x in (
+            drive.kp, drive.velocity_ff, drive.accel_ff, drive.lag, drive.decay, drive.delay_steps)))):
         with np.errstate(divide="ignore", invalid="ignore"):
             inv_g = 2 * (z - decay) * z_less_1 / ((1 - decay) * period * z_plus_1)
             k = ff * central * (1 / (2 * period)) + af * lag * second * (1 / period**2) + kp
             within[kept, j] = (inv_g + kp) / k * fade
+            if delay:  # the command reaches the drive `delay` periods late: correct that much earlier
+                within[kept, j] *= z ** delay
     return out

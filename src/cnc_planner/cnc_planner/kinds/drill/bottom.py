@@ -7,7 +7,8 @@ re-entry) turns where the drive model's feedback turns at the programmed depth
 pre-compensated so that its feedback stops there (dwell.py); a vibrated one is
 compensated as a whole (VibrationFeed). Below R no Z acceleration ramp is shorter than
 BOTTOM_TURN_PERIODS servo periods (z_axis.py), so that no bottom depends on where the
-servo instants fall.
+servo instants fall. No drive inside the description's tolerance turns below the
+programmed depth: the turning point rises by the deepest one's overshoot.
 """
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ from typing import Callable
 import numpy as np
 
 from cnc_msgs_py.machine import Machine
+from cnc_msgs_py.plant import tolerance_corners
 from cnc_servo_bridge.drive import DriveModel
 
 from cnc_planner.kinds.drill.cycle import RETURN_CLEARANCE, DrillCycle, DrillError
@@ -135,5 +137,26 @@ class Bottoms:
                 turn -= error
                 if not self.machine.axes["z"].within_travel(turn):
                     raise DrillError("drill", f"bottom_z: the drive needs a command at {turn} m, outside the Z travel")
-            self._turns[key] = turn
+            self._turns[key] = turn + self._overshoot(start, lead_in, turn, bottom)
         return self._turns[key]
+
+    def _overshoot(self, start: float, lead_in: tuple[RuckigMove, ...], turn: float, bottom: float) -> float:
+        """How far the deepest Z drive inside the tolerance goes below ``bottom`` when the
+        command turns at ``turn`` (0 if none does): the turning point rises by that much, so
+        that no plant inside the tolerance drills deeper than programmed (material is left
+        rather than cut; identifying the drives narrows the tolerance and gives it back)."""
+        c = self.cycle
+        period = c.servo_period
+        corners = [d for d in tolerance_corners(self.machine.drives["z"]) if d != self.machine.drives["z"]]
+        if not corners:
+            return 0.0
+        stroke = self.z.stroke(start, turn)
+        deepest = bottom
+        for corner, exit_move in itertools.product(corners, (self.fast_exit(turn, c.r_z).move, z_move(
+                self.z.turn, turn, 0.0, 0.0, c.r_z + RETURN_CLEARANCE))):
+            p, v, a, k0 = reference(c, start, lead_in, stroke, exit_move,
+                                    math.ceil(exit_move.duration / period) + math.ceil(BOTTOM_STEADY_S / period), 0.0)
+            drive = DriveModel(self.machine, period, ("z",), drives={"z": corner})
+            drive.reset(p[:1])
+            deepest = min(deepest, float(np.min(drive.run(p[:, None], v[:, None], a[:, None])[0][k0:, 0])))
+        return bottom - deepest

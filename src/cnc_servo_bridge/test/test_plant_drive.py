@@ -114,3 +114,16 @@ def test_a_snapshot_takes_a_block_again_exactly():
     drive.restore(saved)
     again = drive.run(p[50:], v[50:], a[50:])[0]
     assert np.array_equal(first, again)
+
+
+def test_the_servo_loop_runs_the_plant_and_refuses_a_delay_off_the_servo_grid():
+    from cnc_msgs_py.plant import parse_plant
+    from cnc_servo_bridge.servo import ServoLoop
+
+    plant = parse_plant({"name": "soft", "drive": {"z": {"kp": 35.0, "delay": 0.002}}}, MILL)
+    loop = ServoLoop(MILL, 1_000_000, plant=plant)
+    assert loop.plant.name == "soft"
+    assert list(loop.drives.kp) == [50.0, 50.0, 35.0, 50.0] and list(loop.drives.delay_steps) == [0, 0, 2, 0]
+    odd = parse_plant({"name": "odd", "drive": {"x": {"delay": 0.0015}}}, MILL)
+    with pytest.raises(ValueError, match=r"plant odd: drive\.x\.delay: 0\.0015 s is not a whole number of servo periods"):
+        ServoLoop(MILL, 1_000_000, plant=odd)

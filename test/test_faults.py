@@ -23,7 +23,7 @@ def test_following_error_trip_stops_and_the_next_job_runs(tmp_path):
     with Session("mill3", tmp_path / "bag") as session:
         session.submit(move_job("crash", LONG))
         running_past(session, "crash", 0.2)
-        session.inject("x", 0.005)  # 5 mm: beyond the 2 mm following error limit
+        session.inject("x", 0.008)  # 8 mm: beyond the 5 mm following error limit
         final = session.wait("crash", 60)
         assert final["state"] == "aborted" and final["reason"].startswith("following error on x")
         session.submit(move_job("after-crash", SHORT))

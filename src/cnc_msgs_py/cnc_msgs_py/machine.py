@@ -97,6 +97,13 @@ class Drive:
     noise: float = 0.0
     tolerance: Tolerance = Tolerance()
 
+    def steady_error(self, velocity: float, acceleration: float) -> float:
+        """The following error (against the command as sent) of this drive moving steadily
+        at ``velocity`` with ``acceleration``: what feed-forward leaves, over the gain, plus
+        the distance covered while the command is in transit."""
+        return ((1.0 - self.velocity_ff) * velocity + (1.0 - self.accel_ff) * self.velocity_lag * acceleration) \
+            / self.kp + self.delay * velocity
+
 
 @dataclass(frozen=True)
 class KinematicParams:

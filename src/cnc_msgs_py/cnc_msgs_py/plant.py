@@ -101,6 +101,16 @@ def outside_tolerance(machine: Machine, plant: Plant) -> list[str]:
     return found
 
 
+def lagging_corner(drive: Drive) -> Drive:
+    """The drive inside the tolerance that lags its command most: least gain and feed-forward,
+    the slowest velocity loop, the longest delay, the most friction and backlash."""
+    tol = drive.tolerance
+    return replace(drive, kp=drive.kp * tol.kp[0], velocity_ff=drive.velocity_ff * tol.velocity_ff[0],
+                   accel_ff=drive.accel_ff * tol.accel_ff[0], velocity_lag=drive.velocity_lag * tol.velocity_lag[1],
+                   delay=drive.delay + tol.delay[1], backlash=drive.backlash + tol.backlash,
+                   friction=drive.friction + tol.friction, noise=0.0)
+
+
 def tolerance_corners(drive: Drive) -> list[Drive]:
     """The drives at the corners of a drive's tolerance: every combination of its lowest and
     highest gain, velocity loop, feed-forward and delay, with and without its most backlash

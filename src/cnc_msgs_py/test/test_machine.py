@@ -53,9 +53,9 @@ def test_mill3_joint_order_and_values():
     assert m.axes["z"] == Axis("z", "linear", -0.3, 0.1, 0.6, 9.8, 200.0)
     assert m.axes[SPINDLE] == Axis("spindle", "continuous", None, None, 1047.0, 500.0, 1.0e5)
     assert m.drives["x"] == Drive(kp=50.0, velocity_ff=1.0, accel_ff=0.0, velocity_lag=0.001,
-                                  resolution=1e-7, following_error_limit=0.002)
+                                  resolution=1e-7, following_error_limit=0.005)
     assert m.drives[SPINDLE] == Drive(kp=50.0, velocity_ff=1.0, accel_ff=0.0, velocity_lag=0.002,
-                                      resolution=1e-5, following_error_limit=1.0)
+                                      resolution=1e-5, following_error_limit=6.5)
     assert tuple(m.drives) == m.joint_names
 
 
@@ -67,7 +67,7 @@ def test_lathe_joint_order_and_values():
     assert m.axes["x"] == Axis("x", "linear", -0.01, 0.15, 0.5, 9.8, 500.0)
     assert m.axes["z"] == Axis("z", "linear", -0.3, 0.05, 0.5, 9.8, 500.0)
     assert m.axes[SPINDLE] == Axis("spindle", "continuous", None, None, 628.0, 300.0, 1.0e5)
-    assert m.drives["z"].kp == 80.0 and m.drives["z"].following_error_limit == 0.002
+    assert m.drives["z"].kp == 80.0 and m.drives["z"].following_error_limit == 0.0026
     assert m.drives[SPINDLE].velocity_lag == 0.002
 
 

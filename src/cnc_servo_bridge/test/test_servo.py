@@ -309,10 +309,10 @@ def test_holding_at_rest_in_blocks_equals_single_steps_exactly():
 
 def test_a_block_ends_at_the_step_that_trips_and_the_stop_follows_as_single_stepped():
     (single, block), n = twin_loops(100)
-    hit = 200  # a crash displaces x by 5 mm before step 200 of both loops
+    hit = 200  # a crash displaces x by 8 mm (beyond its 5 mm limit) before step 200 of both loops
 
     def crash(loop: ServoLoop) -> None:
-        loop.inject("x", 0.005)
+        loop.inject("x", 0.008)
 
     out_single = [single.step(k * MS) for k in range(hit)]
     crash(single)

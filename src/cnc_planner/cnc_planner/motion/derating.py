@@ -9,8 +9,9 @@ that can trip its alarm limit.
 
 So motion is planned on a derated copy of the machine, the drives still clamping at the
 described limits (Machine.nominal): rapids capped where the steady following error,
-((1 - velocity_ff) * v + (1 - accel_ff) * velocity_lag * a) / kp, would use more than a
-share of the alarm limit, and acceleration and jerk lowered step by step until the plan
+((1 - velocity_ff) * v + (1 - accel_ff) * velocity_lag * a) / kp + delay * v, would use more
+than a share of the alarm limit on the described drive or on the most lagging drive inside
+its tolerance, and acceleration and jerk lowered step by step until the plan
 passes plan_check: the bridge's own setpoint rules and the drive model's alarms. The
 first step is the machine as described: a machine that needs no headroom loses nothing.
 Jerk goes first, as it costs the least time and drives the correction's spikes.
@@ -32,6 +33,7 @@ import numpy as np
 
 from cnc_msgs_py.jerk import windowed_jerk
 from cnc_msgs_py.machine import SPINDLE, Axis, Drive, Machine
+from cnc_msgs_py.plant import lagging_corner
 from cnc_msgs_py.schema import JobError
 from cnc_servo_bridge.drive import DriveModel
 
@@ -61,6 +63,8 @@ STEPS = (
 
 
 SERVO_PERIOD = 1e-3  # s: the grid the feedback's jerk is measured on (the bridge's)
+LAGGING_SHARE = 1.5  # the most lagging drive inside the tolerance may use this much more of the
+# alarm limit than the described one (0.9 of it at the first step)
 
 
 def feedback_jerk_factor(machine: Machine, joint: str) -> float:
@@ -88,14 +92,19 @@ def derated(machine: Machine, step: Headroom) -> Machine:
     axes = {}
     for name, axis in machine.axes.items():
         drive = machine.drives[name]
-        budget = step.error_share * drive.following_error_limit * drive.kp
         # The spindle's commands are never compensated: it only needs the error cap.
         share, cap = (1.0, float("inf")) if name == SPINDLE else (step.acceleration_share, step.jerk_cap)
         velocity, acceleration = axis.max_velocity, axis.max_acceleration * share
-        if drive.velocity_ff < 1.0:
-            velocity = min(velocity, 0.7 * budget / (1.0 - drive.velocity_ff))
-        if drive.accel_ff < 1.0:
-            acceleration = min(acceleration, 0.3 * budget / ((1.0 - drive.accel_ff) * drive.velocity_lag))
+        # Steady error within its share of the alarm limit, 70 % of it for velocity and 30 % for
+        # acceleration, on the described drive and, with a larger share, on the one inside the
+        # tolerance that lags most: no plant inside it trips the alarm on a rapid.
+        for lagging, error_share in ((drive, step.error_share), (lagging_corner(drive), LAGGING_SHARE * step.error_share)):
+            budget = error_share * drive.following_error_limit
+            per_velocity, per_acceleration = lagging.steady_error(1.0, 0.0), lagging.steady_error(0.0, 1.0)
+            if per_velocity > 0.0:
+                velocity = min(velocity, 0.7 * budget / per_velocity)
+            if per_acceleration > 0.0:
+                acceleration = min(acceleration, 0.3 * budget / per_acceleration)
         axes[name] = replace(axis, max_velocity=velocity, max_acceleration=acceleration,
                              max_jerk=min(axis.max_jerk / feedback_jerk_factor(machine.nominal or machine, name), cap))
     return replace(machine, axes=axes, nominal=machine)

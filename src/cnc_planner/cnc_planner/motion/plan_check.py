@@ -6,13 +6,18 @@ drive model's following error passes its limit or an encoder reads outside the t
 (ServoLoop). A job must never find either mid-run: every plan (every segment of a long
 job) is sampled on the servo grid as it will be streamed and put through the same
 validation and the same drive model here, so a violation refuses the job up front, with
-the limit it would break.
+the limit it would break. The following error is checked on the described drives and on
+the drives inside their tolerance that lag most (cnc_msgs_py.plant.lagging_corner): no
+plant inside it may trip the alarm either.
 """
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 
 from cnc_msgs_py.machine import Machine
+from cnc_msgs_py.plant import lagging_corner
 from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.units import NS
 from cnc_servo_bridge.drive import DriveModel
@@ -40,14 +45,19 @@ def check_plan(plan: Plan, machine: Machine, period: float, field: str) -> None:
     period_ns = round(period * NS)
     buffer = SetpointBuffer(machine)
     drives = DriveModel(machine, period, plan.joints)
+    corners = {j: lagging_corner(machine.drives[j]) for j in plan.joints}
+    exact = all(corners[j] == replace(machine.drives[j], noise=0.0) for j in plan.joints)  # a closed tolerance
+    lagging = None if exact else DriveModel(machine, period, plan.joints, drives=corners)
     limit = drives.following_error_limit
     now_ns, state = 0, None
     for lo in range(0, n, block):
         k = np.arange(lo, min(n, lo + block))
         p, v, a = plan.sample(k * period)
         if state is None:  # the plan starts where the axes stand, the drives settled there
-            drives.reset(p[0])
-            drives.state.velocity = v[0].copy()
+            for model in (drives, lagging):
+                if model is not None:
+                    model.reset(p[0])
+                    model.state.velocity = v[0].copy()
             state = (p[0], v[0])
         try:
             # Each block continues the one before, as the bridge's chunks continue each other.
@@ -60,6 +70,14 @@ def check_plan(plan: Plan, machine: Machine, period: float, field: str) -> None:
             i, j = np.argwhere(tripped)[0]
             raise JobError(field, f"{plan.joints[j]}: the drive would trip its following error limit "
                                   f"({abs(error[i, j]):.6g} > {limit[j]:.6g}) at {k[i] * period:.3f} s of the plan")
+        if lagging is not None:
+            error = lagging.run(p, v, a)[2]
+            tripped = np.greater(np.abs(error), limit, order="F")
+            if tripped.any():
+                i, j = np.argwhere(tripped)[0]
+                raise JobError(field, f"{plan.joints[j]}: a drive inside the tolerance would trip its following error "
+                                      f"limit ({abs(error[i, j]):.6g} > {limit[j]:.6g}) at {k[i] * period:.3f} s of the "
+                                      "plan: raise following_error_limit or narrow the drive's tolerance")
         outside = buffer.outside_travel(measured)
         if outside.any():
             i, j = np.argwhere(outside)[0]

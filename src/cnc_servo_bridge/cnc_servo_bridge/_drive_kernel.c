@@ -121,28 +121,41 @@ static Py_ssize_t values(const Py_buffer *view)
     return view->len / (Py_ssize_t)sizeof(double);
 }
 
-/* The sizes agree: joints from the state, rows from p_ref, and every other array follows. */
-static int check_sizes(const Py_buffer *view, Py_ssize_t *rows, Py_ssize_t *joints)
+/* The sizes agree: the first `row_arrays` arrays hold rows x joints values, the others up to
+ * `out` one per joint (joints from the first of them), and out 3 x rows x joints. */
+static int check_sizes(const Py_buffer *view, const char *const *names, int row_arrays, int out, Py_ssize_t *rows,
+                       Py_ssize_t *joints)
 {
-    *joints = values(&view[POSITION]);
-    if (*joints == 0 || values(&view[P_REF]) % *joints != 0) {
-        PyErr_Format(PyExc_ValueError, "p_ref: %zd values are not rows of %zd joints",
-                     values(&view[P_REF]), *joints);
+    *joints = values(&view[row_arrays]);
+    if (*joints == 0 || values(&view[0]) % *joints != 0) {
+        PyErr_Format(PyExc_ValueError, "%s: %zd values are not rows of %zd joints", names[0], values(&view[0]),
+                     *joints);
         return -1;
     }
-    *rows = values(&view[P_REF]) / *joints;
-    for (int a = 0; a < OUT; a++) {
-        Py_ssize_t expected = a <= A_REF ? *rows * *joints : *joints;
+    *rows = values(&view[0]) / *joints;
+    for (int a = 0; a < out; a++) {
+        Py_ssize_t expected = a < row_arrays ? *rows * *joints : *joints;
         if (values(&view[a]) != expected) {
-            PyErr_Format(PyExc_ValueError, "%s: expected %zd values, got %zd", NAMES[a], expected, values(&view[a]));
+            PyErr_Format(PyExc_ValueError, "%s: expected %zd values, got %zd", names[a], expected, values(&view[a]));
             return -1;
         }
     }
-    if (values(&view[OUT]) != 3 * *rows * *joints) {
-        PyErr_Format(PyExc_ValueError, "out: expected %zd values, got %zd", 3 * *rows * *joints, values(&view[OUT]));
+    if (values(&view[out]) != 3 * *rows * *joints) {
+        PyErr_Format(PyExc_ValueError, "%s: expected %zd values, got %zd", names[out], 3 * *rows * *joints,
+                     values(&view[out]));
         return -1;
     }
     return 0;
+}
+
+/* Every array argument in turn (writable where its bit is set in `writable`); how many were
+ * taken: fewer than `count` with a Python error set. */
+static int take_all(PyObject *const *obj, Py_buffer *view, int count, unsigned long writable, const char *const *names)
+{
+    int taken = 0;
+    while (taken < count && take(obj[taken], &view[taken], (int)((writable >> taken) & 1UL), names[taken]) == 0)
+        taken++;
+    return taken;
 }
 
 static PyObject *run_py(PyObject *self, PyObject *args)
@@ -156,15 +169,9 @@ static PyObject *run_py(PyObject *self, PyObject *args)
                           &obj[VELOCITY_FF], &obj[ACCEL_GAIN], &obj[DECAY], &obj[V_LIMIT],
                           &obj[DV_LIMIT], &obj[RESOLUTION], &period, &obj[OUT]))
         return NULL;
-    int taken = 0;
-    while (taken < ARRAYS) {
-        int writable = taken == POSITION || taken == VELOCITY || taken == MEASURED || taken == OUT;
-        if (take(obj[taken], &view[taken], writable, NAMES[taken]) < 0)
-            break;
-        taken++;
-    }
+    int taken = take_all(obj, view, ARRAYS, 1UL << POSITION | 1UL << VELOCITY | 1UL << MEASURED | 1UL << OUT, NAMES);
     Py_ssize_t rows, joints;
-    int ok = taken == ARRAYS && check_sizes(view, &rows, &joints) == 0;
+    int ok = taken == ARRAYS && check_sizes(view, NAMES, POSITION, OUT, &rows, &joints) == 0;
     if (ok) {
         const double *d[ARRAYS];
         for (int a = 0; a < ARRAYS; a++)
@@ -253,33 +260,10 @@ static PyObject *run_plant_py(PyObject *self, PyObject *args)
                           &obj[L_DV_LIMIT], &obj[L_RESOLUTION], &obj[L_FRICTION], &obj[L_BACKLASH], &period,
                           &obj[L_OUT]))
         return NULL;
-    int taken = 0;
-    while (taken < L_ARRAYS) {
-        int writable = taken == L_POSITION || taken == L_VELOCITY || taken == L_LOAD || taken == L_MEASURED
-                       || taken == L_OUT;
-        if (take(obj[taken], &view[taken], writable, L_NAMES[taken]) < 0)
-            break;
-        taken++;
-    }
-    int ok = taken == L_ARRAYS;
-    Py_ssize_t joints = ok ? values(&view[L_POSITION]) : 0, rows = 0;
-    if (ok && (joints == 0 || values(&view[L_P_REF]) % joints != 0)) {
-        PyErr_Format(PyExc_ValueError, "p_ref: %zd values are not rows of %zd joints", values(&view[L_P_REF]), joints);
-        ok = 0;
-    }
-    if (ok)
-        rows = values(&view[L_P_REF]) / joints;
-    for (int a = 0; ok && a < L_OUT; a++) {
-        Py_ssize_t expected = a <= L_NOISE ? rows * joints : joints;
-        if (values(&view[a]) != expected) {
-            PyErr_Format(PyExc_ValueError, "%s: expected %zd values, got %zd", L_NAMES[a], expected, values(&view[a]));
-            ok = 0;
-        }
-    }
-    if (ok && values(&view[L_OUT]) != 3 * rows * joints) {
-        PyErr_Format(PyExc_ValueError, "out: expected %zd values, got %zd", 3 * rows * joints, values(&view[L_OUT]));
-        ok = 0;
-    }
+    int taken = take_all(obj, view, L_ARRAYS, 1UL << L_POSITION | 1UL << L_VELOCITY | 1UL << L_LOAD
+                         | 1UL << L_MEASURED | 1UL << L_OUT, L_NAMES);
+    Py_ssize_t rows, joints;
+    int ok = taken == L_ARRAYS && check_sizes(view, L_NAMES, L_POSITION, L_OUT, &rows, &joints) == 0;
     Drive *drives = NULL;
     Losses *losses = NULL;
     if (ok) {

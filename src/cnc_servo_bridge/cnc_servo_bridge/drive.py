@@ -62,9 +62,23 @@ class DriveModel:
                  drives: dict[str, Drive] | None = None, seed: int = 0):
         """``drives``: the drives to emulate instead of the description's (a plant, or a
         corner of the description's tolerance); ``seed``: of their encoder noise, if any."""
-        self.joints = joints or machine.joint_names
+        joints = joints or machine.joint_names
+        self._setup(machine, servo_period, [(j, (drives or machine.drives)[j]) for j in joints], seed)
+
+    @classmethod
+    def columns(cls, machine: Machine, servo_period: float, columns: list[tuple[str, Drive]],
+                seed: int = 0) -> DriveModel:
+        """One model stepping several drives side by side, a column each: (joint, drive) pairs,
+        a joint as often as it has drives (the planner runs the corners of a tolerance at
+        once, in one kernel call)."""
+        model = cls.__new__(cls)
+        model._setup(machine, servo_period, columns, seed)
+        return model
+
+    def _setup(self, machine: Machine, servo_period: float, columns: list[tuple[str, Drive]], seed: int) -> None:
+        self.joints = tuple(j for j, _ in columns)
         self.period = servo_period
-        chosen = [(drives or machine.drives)[j] for j in self.joints]
+        chosen = [d for _, d in columns]
         axes = [machine.drive_axes[j] for j in self.joints]
         self.kp = np.array([d.kp for d in chosen])
         self.velocity_ff = np.array([d.velocity_ff for d in chosen])
@@ -73,6 +87,8 @@ class DriveModel:
         self.resolution = np.array([d.resolution for d in chosen])
         self.following_error_limit = np.array([d.following_error_limit for d in chosen])
         self.delay_steps = np.array([round(d.delay / servo_period) for d in chosen], dtype=np.intp)
+        edges = [0] + [k for k in range(1, len(chosen)) if self.delay_steps[k] != self.delay_steps[k - 1]] + [len(chosen)]
+        self._delay_runs = [(int(self.delay_steps[a]), a, b) for a, b in zip(edges, edges[1:])]
         self.friction = np.array([d.friction for d in chosen])
         self.backlash = np.array([d.backlash for d in chosen])
         self.noise = np.array([d.noise for d in chosen])
@@ -118,13 +134,14 @@ class DriveModel:
         last ones stay in transit for the next call."""
         if self.history is None:
             return p_ref, v_ref, a_ref
-        depth = len(self.history[0])
-        rows = (depth - self.delay_steps)[None, :] + np.arange(len(p_ref))[:, None]
-        cols = np.arange(len(self.joints))[None, :]
+        depth, n = len(self.history[0]), len(p_ref)
         seen, kept = [], []
         for past, ref in zip(self.history, (p_ref, v_ref, a_ref)):
             extended = np.concatenate((past, ref))
-            seen.append(np.ascontiguousarray(extended[rows, cols]))
+            out = np.empty_like(ref)
+            for delay, first, last in self._delay_runs:  # a slice per run of columns of one delay
+                out[:, first:last] = extended[depth - delay:depth - delay + n, first:last]
+            seen.append(out)
             kept.append(extended[-depth:].copy())
         self.history = tuple(kept)  # type: ignore[assignment]
         return tuple(seen)

@@ -43,18 +43,19 @@ Emit = Callable[[PlanBuilder, float, np.ndarray, np.ndarray, np.ndarray, bool], 
 def _feedback(machine: Machine, plan: Plan, ts: np.ndarray, period: float, joints: tuple[str, ...],
               drives: list[Drive]) -> np.ndarray:
     """Feedback (plants, len(ts), len(joints)) of each drive (one for every joint listed) from
-    rest at the plan's position at ts[0]; the plan sampled BLOCK_S at a time (the same values
-    as in one piece, without the whole cycle's setpoints in memory)."""
-    models = [DriveModel(machine, period, joints, drives={j: d for j in joints}) for d in drives]
-    out = np.empty((len(drives), len(ts), len(joints)))
+    rest at the plan's position at ts[0], all in one model (a column per joint and drive);
+    the plan sampled BLOCK_S at a time (the same values as in one piece, without the whole
+    cycle's setpoints in memory)."""
+    order = sorted(range(len(drives)), key=lambda i: drives[i].delay)  # columns of one delay side by side
+    model = DriveModel.columns(machine, period, [(j, drives[i]) for i in order for j in joints])
+    out = np.empty((len(ts), len(drives) * len(joints)))
     block = max(2, int(BLOCK_S / period))
     for lo in range(0, len(ts), block):
-        p, v, a = plan.sample(ts[lo:lo + block], joints)
-        for model, fb in zip(models, out):
-            if lo == 0:
-                model.reset(p[0])
-            fb[lo:lo + block] = model.run(p, v, a)[0]
-    return out
+        p, v, a = (np.tile(x, len(drives)) for x in plan.sample(ts[lo:lo + block], joints))
+        if lo == 0:
+            model.reset(p[0])
+        out[lo:lo + block] = model.run(p, v, a)[0]
+    return out.reshape(len(ts), len(drives), len(joints)).transpose(1, 0, 2)[np.argsort(order)]
 
 
 def drives_to_check(machine: Machine, joint: str) -> list[Drive]:

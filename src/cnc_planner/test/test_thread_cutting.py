@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from cnc_msgs_py.job import load_job_file, parse_job
-from cnc_msgs_py.machine import load_machine
+from cnc_msgs_py.machine import exactly_as_described, load_machine
 from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.units import mm
 from cnc_planner.motion.builder import PlanBuilder
@@ -29,7 +29,9 @@ from cnc_servo_bridge.drive import DriveModel
 from cnc_analysis.threads import analyze_thread
 
 T = 1e-3
-LATHE = load_machine("lathe")
+# The lathe exactly as described (tolerance closed): these tests hold the plan to the described
+# drives' feedback to the count; what a tolerance costs is test_thread_tolerance.py's.
+LATHE = exactly_as_described(load_machine("lathe"))
 JOB = {
     "schema": "cnc_job/1", "job_id": "thread-9", "kind": "thread", "machine": "lathe", "spindle_rpm": 600,
     "thread": {"start_z": 4.0, "end_z": -16.0, "major_radius": 6.0, "pitch": 1.75, "depth": 1.07,

@@ -15,6 +15,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from cnc_msgs_py.machine import Drive, Machine
+from cnc_msgs_py.plant import tolerance_corners
 from cnc_servo_bridge.drive import DriveModel
 
 
@@ -24,6 +26,14 @@ COMPENSATION_PASSES = 3  # simulate-and-correct passes; the first already lands 
 INVERSE_BAND = (0.15, 0.35)  # share of the servo rate: full inverse below, faded out up to
 QUANTISATION_SHARE = 0.05  # of the acceleration limit that chasing encoder counts may cost
 SETTLED = 1.0e-9  # m: command correction below this counts as settled
+
+
+def tolerance_drives(machine: Machine, joint: str) -> list[Drive]:
+    """The described drive of a joint and the corners of its tolerance that differ from it:
+    the plants a command compensated for the description is checked on (one drive alone
+    where the tolerance is closed)."""
+    described = machine.drives[joint]
+    return [described] + [d for d in tolerance_corners(described) if d != described]
 
 
 def compensation_band(drive: DriveModel, max_acceleration: float) -> tuple[float, float]:

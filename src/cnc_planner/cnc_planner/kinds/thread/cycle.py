@@ -25,7 +25,7 @@ from cnc_planner.kinds.thread._stock_kernel import inside_stock
 from cnc_planner.kinds.thread.helix import helix, helix_peaks
 from cnc_planner.kinds.thread.joins import Revolution, latest
 from cnc_planner.kinds.thread.ramps import Ramps, z_to_speed
-from cnc_planner.kinds.thread.spec import JOINTS, TWO_PI, Pass, ThreadError, ThreadSpec, passes_of
+from cnc_planner.kinds.thread.spec import JOINTS, TWO_PI, Pass, ThreadError, ThreadSpec, left_standing, passes_of
 from cnc_planner.kinds.thread.stretches import Stretch, at_rest, moving, pieces, sample_track
 from cnc_planner.motion.compensation import COMPENSATION_TAIL, learned_command
 
@@ -96,13 +96,14 @@ class ThreadCycle:
 
     def __init__(self, spec: ThreadSpec, machine: Machine, period: float, theta0: float,
                  drive: DriveModel | None = None, settled: float = 0.0,
-                 start: tuple[float, float] | None = None) -> None:
+                 start: tuple[float, float] | None = None, pulls: dict[int, float] | None = None) -> None:
         """``theta0``: the spindle angle at cycle time 0 as if it turned at speed already
         (the helix is only ever evaluated after ``settled``, the cycle time before which no
         pass may join it: the spindle is at speed and its following error has died out
         meanwhile, while the axes already approach). ``start``: axis (x, z) where the
         cycle begins at rest, in front of the face (default: the clearance radius at
-        start_z); the first pass runs from there straight onto its helix."""
+        start_z); the first pass runs from there straight onto its helix. ``pulls``: m by
+        which each pass's depth is raised (spec.left_standing), none by default."""
         self.spec, self.machine, self.period, self.theta0 = spec, machine, period, theta0
         self.settled = settled
         self._ramps = Ramps(machine)
@@ -117,7 +118,7 @@ class ThreadCycle:
         self.start = start or (self.x_clear, spec.origin[1] + spec.start_z)
         self.tracks: list[list[Stretch]] = [[at_rest(self.start[0])], [at_rest(self.start[1])]]
         self.cuts: list[CutTiming] = []
-        for cut in passes_of(spec):
+        for cut in left_standing(passes_of(spec), pulls or {}):
             for start in range(spec.starts):
                 self._add(cut, start)
         self.end = np.array([self.x_clear, spec.origin[1] + spec.start_z])
@@ -543,6 +544,11 @@ class ThreadCycle:
                                            tolerance)
         self._command = motion[:, :self._correction.shape[1]] + self._correction
         self.duration = (self._correction.shape[1] - 1) * self.period
+
+    @property
+    def command(self) -> np.ndarray | None:
+        """(3, servo instants, 2): the compensated command from cycle time 0 (None uncompensated)."""
+        return self._command
 
     def sample_all(self, t: np.ndarray) -> np.ndarray:
         """(3, len(t), 2): the command at cycle times t (cached: x and z ask alike); read

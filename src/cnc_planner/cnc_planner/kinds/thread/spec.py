@@ -10,7 +10,7 @@ stay in program coordinates.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -170,5 +170,19 @@ def passes_of(spec: ThreadSpec, vib: ThreadVibration | None = None) -> list[Pass
             per_rev=vib.D + k * vib.D_step if vibrating else 0.0,
             phase=(k * vib.phase_shift / TWO_PI) % 1.0 if vibrating else 0.0,
         ))
+        previous = depth
+    return out
+
+
+def left_standing(cuts: list[Pass], pulls: dict[int, float]) -> list[Pass]:
+    """The passes with pass k's depth raised by pulls[k] (m): material left on the part where
+    a drive inside the tolerance would cut deeper than the thread (kinds/thread/tolerance.py).
+    Depths of cut follow the raised depths; a pass's vibration stays as planned, so its
+    returns lie no lower than before and its chips break as they did; spring passes stay
+    spring passes."""
+    out, previous = [], 0.0
+    for cut in cuts:
+        depth = cut.depth - pulls.get(cut.index, 0.0)
+        out.append(replace(cut, depth=depth, doc=0.0 if cut.spring else depth - previous))
         previous = depth
     return out

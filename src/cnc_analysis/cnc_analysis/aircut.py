@@ -21,6 +21,16 @@ import numpy as np
 TWO_PI = 2.0 * math.pi
 MIN_PHASE_POINTS = 1440  # phase grid per revolution: 0.25 deg, finer if the samples are
 ROUNDING = 1e-12  # m: a depth this small is floating-point rounding, not material
+CHIP_LIMIT_REVS = 1.0  # a chip is broken within one spindle revolution per vibration window
+
+
+def chip_limit_revs(vibration: dict | None) -> float:
+    """The longest chip (revolutions) a waveform may leave on feedback: CHIP_LIMIT_REVS per
+    window, the window being one revolution for D vibrations per revolution and E
+    revolutions for one vibration every E revolutions (``vibration``: the waveform as a
+    vibration_feed event records it, {D, Q} or {E, R, Q}; none recorded: one revolution)."""
+    window = float((vibration or {}).get("E") or 1.0)
+    return CHIP_LIMIT_REVS * max(1.0, window)
 
 
 @dataclass(frozen=True)

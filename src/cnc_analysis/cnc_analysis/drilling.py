@@ -10,7 +10,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from cnc_msgs_py.units import to_mm
+from cnc_msgs_py.units import mm, to_mm
+
+# What fails a drilled hole on feedback. Deeper than programmed cuts into what lies below the
+# hole: only an encoder's noise and rounding are allowed. Shallower leaves material; the
+# planner turns each bottom where the stiffest drive inside the description's tolerance
+# would reach the depth, so drives as described (or softer) stop short by up to ~0.08 mm
+# (32 um on the shipped mill3), and a hole's depth is seldom toleranced tighter than 0.1 mm.
+DEPTH_OVER_LIMIT = 5e-6  # m
+DEPTH_SHORT_LIMIT = 0.1e-3  # m
 
 
 def _runs(mask: np.ndarray, t: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -142,3 +150,29 @@ def _hole(index: int, xy: np.ndarray, surface_z: float | list[float] | None) -> 
     if surface_z is not None:
         row["depth_mm"] = None
     return row
+
+
+def drilling_failures(result: dict, depths: list[float]) -> list[str]:
+    """What fails a drilling cycle judged by analyze_drilling (with surface_z): any sample
+    below R with X/Y off its hole, a hole never drilled, a hole deeper than its programmed
+    depth (``depths``, m below its surface, in the result's hole order) by more than
+    DEPTH_OVER_LIMIT or shallower by more than DEPTH_SHORT_LIMIT. One phrase per kind of miss."""
+    failures = []
+    if result["safety_violations"]:
+        failures.append(f"X/Y moved while the tip was below R in {result['safety_violations']} feedback samples")
+    missing = [h for h in result["holes"] if h.get("depth_mm") is None]
+    if missing:
+        failures.append(f"{len(missing)} of {len(result['holes'])} holes not drilled, the first at {_at(missing[0])}")
+    errors = [(mm(h["depth_mm"]) - depth, h, depth) for h, depth in zip(result["holes"], depths)
+              if h.get("depth_mm") is not None]
+    for name, limit, misses in (("deeper", DEPTH_OVER_LIMIT, [e for e in errors if e[0] > DEPTH_OVER_LIMIT]),
+                                ("shallower", DEPTH_SHORT_LIMIT, [e for e in errors if e[0] < -DEPTH_SHORT_LIMIT])):
+        if misses:
+            _, hole, depth = max(misses, key=lambda e: abs(e[0]))
+            failures.append(f"{len(misses)} of {len(errors)} holes {name} than programmed by more than "
+                            f"{to_mm(limit):g} mm, the worst {hole['depth_mm']:.4f} mm deep for {to_mm(depth):g} mm at {_at(hole)}")
+    return failures
+
+
+def _at(hole: dict) -> str:
+    return f"X {hole['x_mm']:g} Y {hole['y_mm']:g} mm"

@@ -15,6 +15,7 @@ from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
+from cnc_msgs_py.topics import PLANT_KEY
 from cnc_msgs_py.units import NS
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
@@ -69,11 +70,13 @@ class Run:
     command_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
     command: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     command_velocity: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    command_acceleration: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     chunks: list[Chunk] = field(default_factory=list)
     goals: list[str] = field(default_factory=list)
     statuses: list[dict] = field(default_factory=list)
     events: list[dict] = field(default_factory=list)
     alarms: list[str] = field(default_factory=list)
+    plant: str | None = None  # the drives the bridge emulated, as its diagnostics named them last
 
     def column(self, joint: str) -> int:
         return self.joints.index(joint)
@@ -95,7 +98,7 @@ def read_run(bag: Path) -> Run:
         raise FileNotFoundError(f"no recording at {bag}")
     run = Run()
     fb_t, fb_p, fb_v = [], [], []
-    setpoints: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+    setpoints: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
     try:
         with AnyReader([bag], default_typestore=TYPESTORE) as reader:
             for conn, received_ns, raw in reader.messages():
@@ -117,9 +120,11 @@ def read_run(bag: Path) -> Run:
                         run.joints = tuple(msg.joint_names)
                     pos = np.array([p.positions for p in msg.points])
                     vel = np.array([p.velocities for p in msg.points])
+                    acc = np.array([p.accelerations if len(p.accelerations) else np.zeros(len(p.positions))
+                                    for p in msg.points])
                     if order is not None:
-                        pos, vel = pos[:, order], vel[:, order]
-                    setpoints.append((times, pos, vel))
+                        pos, vel, acc = pos[:, order], vel[:, order], acc[:, order]
+                    setpoints.append((times, pos, vel, acc))
                     run.chunks.append(Chunk(int(times[0]), int(times[-1]), len(times), bool(np.any(vel[-1] != 0.0)),
                                             received_ns))
                 elif topic == "job_goal":
@@ -130,6 +135,7 @@ def read_run(bag: Path) -> Run:
                     run.events.append(json.loads(msg.data))
                 elif topic == "diagnostics":
                     run.alarms += [s.message for s in msg.status if s.level >= 2]
+                    run.plant = next((v.value for s in msg.status for v in s.values if v.key == PLANT_KEY), run.plant)
     except (OSError, KeyError, ValueError, AnyReaderError) as err:
         raise ValueError(f"cannot read recording {bag}: {err}") from err
     if fb_t:
@@ -137,20 +143,21 @@ def read_run(bag: Path) -> Run:
         run.feedback = np.array(fb_p)
         run.feedback_velocity = np.array(fb_v)
     if setpoints:
-        times, pos, vel = _executed(setpoints)
-        run.command_t, run.command, run.command_velocity = times / NS, pos, vel
+        times, pos, vel, acc = _executed(setpoints)
+        run.command_t, run.command, run.command_velocity, run.command_acceleration = times / NS, pos, vel, acc
     return run
 
 
-def _executed(chunks: list[tuple[np.ndarray, np.ndarray, np.ndarray]]):
-    """Join chunks the way the bridge buffers them: a chunk replaces points from its stamp."""
-    kept: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
-    for times, pos, vel in chunks:
+def _executed(chunks: list[tuple[np.ndarray, ...]]):
+    """Join chunks (times, then per-point arrays: positions, velocities, accelerations) the
+    way the bridge buffers them: a chunk replaces points from its stamp."""
+    kept: list[tuple[np.ndarray, ...]] = []
+    for chunk in chunks:
+        times = chunk[0]
         while kept and kept[-1][0][0] >= times[0]:
             kept.pop()
         if kept and kept[-1][0][-1] >= times[0]:
-            t, p, v = kept[-1]
-            keep = int(np.searchsorted(t, times[0]))
-            kept[-1] = (t[:keep], p[:keep], v[:keep])
-        kept.append((times, pos, vel))
-    return tuple(np.concatenate([k[i] for k in kept]) for i in range(3))
+            keep = int(np.searchsorted(kept[-1][0], times[0]))
+            kept[-1] = tuple(x[:keep] for x in kept[-1])
+        kept.append(chunk)
+    return tuple(np.concatenate([k[i] for k in kept]) for i in range(len(chunks[0])))

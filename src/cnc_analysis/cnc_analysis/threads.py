@@ -31,11 +31,13 @@ import numpy as np
 
 from cnc_msgs_py.units import deg, mm, to_mm
 
+from .aircut import CHIP_LIMIT_REVS
+
 TWO_PI = 2.0 * math.pi
 CUT_TOLERANCE = 0.5e-6  # m: deeper than the envelope by more than this is cutting
 CUTTING_PASS = 0.05e-3  # m: a pass whose depth of cut exceeds this must break its chips
 DEPTH_TOLERANCE = 0.02e-3  # m: full depth reached and never exceeded within this
-CHIP_LIMIT_REVS = 1.0  # longest continuous cut allowed in a cutting pass
+FLANK_TOLERANCE = DEPTH_TOLERANCE  # m: the tool's axial distance from its flank line, held as the depth
 POINTS_PER_REV = 720  # groove grid: 0.5 deg of helix
 SYNC_TOLERANCE = 0.02  # share of the lead: g advancing at lead/rev within this is synchronised
 SYNC_WINDOW = 0.1  # rad of spindle over which the lead per revolution is measured
@@ -338,3 +340,23 @@ def analyze_thread(
         % (360.0 / groove.starts),
         "infeed_angle_deg": math.degrees(math.atan(slope)),
     }
+
+
+def thread_failures(figures: dict, vibrated: bool) -> list[str]:
+    """What fails a thread judged by analyze_thread: its depth short or over by more than
+    DEPTH_TOLERANCE, the tool off its flank line (the helix residual) by more than
+    FLANK_TOLERANCE and, for a vibrated thread, a cutting pass's chip longer than
+    CHIP_LIMIT_REVS. One phrase per miss."""
+    failures = []
+    if figures["overcut_mm"] > to_mm(DEPTH_TOLERANCE):
+        failures.append(f"cut {figures['overcut_mm']:.4f} mm deeper than the thread's depth "
+                        f"(limit {to_mm(DEPTH_TOLERANCE):g} mm)")
+    if figures["depth_error_mm"] > to_mm(DEPTH_TOLERANCE) and figures["overcut_mm"] <= to_mm(DEPTH_TOLERANCE):
+        failures.append(f"depth {figures['depth_error_mm']:.4f} mm short of the thread's depth "
+                        f"(limit {to_mm(DEPTH_TOLERANCE):g} mm)")
+    if figures["helix_residual_mm"] > to_mm(FLANK_TOLERANCE):
+        failures.append(f"the tool left its flank line by {figures['helix_residual_mm']:.4f} mm "
+                        f"(limit {to_mm(FLANK_TOLERANCE):g} mm)")
+    if vibrated and figures["max_chip_revs"] > CHIP_LIMIT_REVS:
+        failures.append(f"a chip of {figures['max_chip_revs']:.2f} revolutions (limit {CHIP_LIMIT_REVS:g})")
+    return failures

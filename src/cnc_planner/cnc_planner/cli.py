@@ -5,7 +5,8 @@ cnc-run's exit codes: 0 the job succeeded and every verdict of its report holds;
 did not succeed (rejected by the planner, aborted, canceled); 2 the input is bad (job file,
 machine, --out); 3 the run itself failed (nodes, timeout); 4 the job ran to its end but a
 verdict of the report failed (a section's ``verdict.passed`` is false): a miss is never
-reported as a success.
+reported as a success. cnc-analyze exits 4 on a failed verdict too. The report's ``drives``
+comparison is advice (which axis is not its description), printed but never an exit code.
 """
 from __future__ import annotations
 
@@ -119,6 +120,10 @@ def summary(report: dict) -> str:
         if isinstance(section, dict) and isinstance(section.get("verdict"), dict):
             verdict = section["verdict"]
             lines.append(f"  verdict {key}: {'passed' if verdict.get('passed') else 'FAILED'}: {verdict.get('says', '')}")
+    drives = report.get("drives")
+    if drives:  # advice, not a verdict: which axis is not its description, and what to do
+        plant = f" (plant {report['plant']})" if report.get("plant") else ""
+        lines.append(f"  drives{plant}: {'as described' if drives['as_described'] else 'DIFFER'}: {drives['says']}")
     return "\n".join(lines)
 
 
@@ -182,7 +187,8 @@ def plan_main(argv: list[str] | None = None) -> int:
 
 
 def analyze_main(argv: list[str] | None = None) -> int:
-    """cnc-analyze DIR/bag [--out report.json]: recompute the report from a recording alone."""
+    """cnc-analyze DIR/bag [--out report.json]: recompute the report from a recording alone;
+    exits 4 when a verdict of the report fails, as cnc-run does."""
     parser = tool_parser("cnc-analyze", "cnc_planner", description=analyze_main.__doc__)
     parser.add_argument("bag", type=Path)
     parser.add_argument("--out", type=Path, help="write the report here (default: print it)")
@@ -198,6 +204,10 @@ def analyze_main(argv: list[str] | None = None) -> int:
         _write_json(args.out, report)
     else:
         print(json.dumps(report, indent=2))
+    failed = failed_verdicts(report)
+    if failed:
+        print(f"cnc-analyze: verdict failed: {', '.join(failed)}", file=sys.stderr)
+        return VERDICT_FAILED
     return 0
 
 

@@ -2,7 +2,10 @@
 
 The job document travels on job_goal and is recorded, so the job's kind (its report
 section, cnc_planner.kinds) re-derives what it needs (hole positions, R plane, stock) from
-it with the planner's own code and has the recorded feedback judged by cnc_analysis.
+it with the planner's own code and has the recorded feedback judged by cnc_analysis. Each
+section carries a verdict (cnc_analysis.verdict); ``drives`` (cnc_planner.replay) sets the
+feedback the description predicts beside the recorded one, and ``plant`` names the drives
+the bridge emulated, as its diagnostics said (None if the recording does not say).
 """
 from __future__ import annotations
 
@@ -22,6 +25,7 @@ from cnc_planner.executive import event_doc
 from cnc_planner.kinds import KINDS
 from cnc_planner.motion.timeline import Event, Plan
 from cnc_planner.prediction import simulated_feedback
+from cnc_planner.replay import drives_section
 from cnc_planner.vibration.report import aircut_section
 
 
@@ -68,6 +72,7 @@ def build_report(run: Run, machine: Machine | None = None) -> dict:
         "chunks_lost": summary.chunks_lost(run),
         "feedback_samples": int(len(run.feedback_t)),
         "alarms": sorted(set(run.alarms)),
+        "plant": run.plant,
     }
     if job is None or status["state"] == "rejected" or len(run.feedback_t) == 0:
         return report
@@ -75,6 +80,7 @@ def build_report(run: Run, machine: Machine | None = None) -> dict:
         machine = machine or load_machine(job.machine)
     except MachineError:
         return report
+    report["drives"] = drives_section(run, machine)
     window = job_window(run, status["job_id"])
     section = KINDS[job.kind].report
     if section is not None:
@@ -97,12 +103,13 @@ def predicted_run(doc: dict, plan: Plan, machine: Machine, period: float = 1e-3)
     prediction with the very code that judges recordings. A prediction, not a recording:
     no DDS, no timing, no lost samples."""
     t, feedback = simulated_feedback(plan, machine, period)
-    p, v, _ = plan.sample(t)
+    p, v, a = plan.sample(t)
     job_id = str(doc.get("job_id", ""))
     final = {"job_id": job_id, "state": "succeeded", "reason": "", "cycle_time_s": plan.duration}
     events = [event_doc(job_id, 0, e) for e in plan.events]
     if not any(e.name == "job_start" for e in plan.events):
         events.insert(0, event_doc(job_id, 0, Event(0.0, "job_start")))
     return Run(joints=plan.joints, feedback_t=t, feedback=feedback, feedback_velocity=np.zeros_like(feedback),
-               command_t=t, command=p, command_velocity=v, goals=[json.dumps(doc)], statuses=[final],
+               command_t=t, command=p, command_velocity=v, command_acceleration=a, goals=[json.dumps(doc)],
+               statuses=[final],
                events=events)

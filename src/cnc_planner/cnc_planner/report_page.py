@@ -1,8 +1,9 @@
 """DIR/report.html: one self-contained page a machinist reads at a glance.
 
 The page holds the job summary, a verdict per question a machinist asks (did it finish,
-was it safe, did the chips break, is there stock left or a gouge, how long did it take
-against the conventional cycle and the lower bound, how well did the axes follow, were
+did the feedback pass every section's verdict, was it safe, did the chips break, is there
+stock left or a gouge, how long did it take against the conventional cycle and the lower
+bound, how well did the axes follow, did they follow as the description predicts, were
 setpoints lost), the per-hole / per-pass tables, and every plot with a caption. Plots are
 embedded as base64 data URIs and the CSS is inline: no network, no JavaScript, so the file
 can be mailed or opened from a bag archive as it is. This module works out what the page
@@ -71,6 +72,10 @@ def verdicts(report: dict) -> list[Card]:
     cards.append(("Job", state, report.get("reason") or _job_detail(report), _state_class(state)))
     if state == "rejected":
         return cards
+    judged = {key: found["verdict"] for key, found in report.items()
+              if isinstance(found, dict) and isinstance(found.get("verdict"), dict)}
+    if judged:
+        cards.append(_verdict_card(judged))
     if report.get("aircut") is not None:
         cards += aircut_page.cards(report["aircut"])
     for section, found in _sections(report):
@@ -78,6 +83,8 @@ def verdicts(report: dict) -> list[Card]:
             cards += section.cards(found)
     cards.append(_cycle_card(report))
     cards.append(_following_card(report.get("max_following_error") or {}))
+    if report.get("drives"):
+        cards.append(_drives_card(report["drives"], report.get("plant")))
     lost, chunks = report.get("chunks_lost", 0), report.get("chunks", 0)
     alarms = report.get("alarms") or []
     cards.append(("Setpoints", f"{lost} chunks lost",
@@ -114,6 +121,23 @@ def _cycle_card(report: dict) -> Card:
     return "Cycle time", f"{cycle:.2f} s", "; ".join(notes), cls
 
 
+def _verdict_card(judged: dict[str, dict]) -> Card:
+    """Every section's verdict at once: the run fails (cnc-run exits 4) if any does."""
+    failed = [key for key, verdict in judged.items() if not verdict.get("passed")]
+    detail = "; ".join(f"{key}: {verdict.get('says', '')}" for key, verdict in judged.items()
+                       if not failed or key in failed)
+    return ("Verdict on feedback", f"failed: {', '.join(failed)}" if failed else "passed", detail,
+            "bad" if failed else "ok")
+
+
+def _drives_card(drives: dict, plant: str | None) -> Card:
+    """The feedback against the description's prediction: advice, never a failed run."""
+    differs = drives["differs"]
+    value = "as described" if not differs else f"{', '.join(differs)} differ{'s' if len(differs) == 1 else ''}"
+    detail = (f"plant {plant}; " if plant else "") + drives["says"]
+    return "Drives vs description", value, detail, "warn" if differs else "ok"
+
+
 def _following_card(errors: dict) -> Card:
     if not errors:
         return "Following error", "n/a", "no feedback recorded", "info"
@@ -130,6 +154,13 @@ def tables(report: dict) -> list[Table]:
     if errors:
         rows = [[k, f"{v * 1e3:.4f}", "mrad" if k in ROTARY else "mm"] for k, v in errors.items()]
         out.append(("Following error per axis", ["axis", "max |command - feedback|", "unit"], rows))
+    drives = (report.get("drives") or {}).get("axes") or {}
+    if drives:
+        rows = [[k, f"{a['max_residual']:.4f}", f"{a['rms_residual']:.4f}", f"{a['max_following_error']:.4f}",
+                 f"{a['predicted_max_following_error']:.4f}", a["unit"]] for k, a in drives.items()]
+        out.append(("Feedback against the description's prediction",
+                    ["axis", "max residual", "RMS residual", "following error recorded", "following error predicted",
+                     "unit"], rows))
     for section, found in _sections(report):
         if section.tables is not None:
             out += section.tables(found)

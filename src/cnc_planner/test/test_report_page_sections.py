@@ -48,10 +48,13 @@ def test_chip_breaking_thread_and_turning_verdicts():
 
     turn = {**BASE, "turn": {"passes": 8, "air_feed_mm": 4.0, "naive_air_feed_mm": 109.0, "path_mm": 387.0,
                              "naive_path_mm": 540.0, "max_gouge_mm": 0.005, "max_gouge_part_mm": 0.005,
-                             "max_gouge_commanded_mm": 0.0, "cycle_time_s": 12.5}}
+                             "max_gouge_commanded_mm": 0.0, "cycle_time_s": 12.5,
+                             "verdict": {"passed": True, "criterion": "gouge", "says": "no gouge"}}}
     assert cards(turn)["Stock left / gouge"][0] == "no gouge"
     turn["turn"]["max_gouge_part_mm"] = 0.2
+    turn["turn"]["verdict"] = {"passed": False, "criterion": "gouge", "says": "gouge: 0.2000 mm"}
     assert cards(turn)["Stock left / gouge"][2] == "bad"
+    assert cards(turn)["Verdict on feedback"] == ("failed: turn", "turn: gouge: 0.2000 mm", "bad")
 
 
 def test_cycle_time_against_conventional_and_lower_bound():

@@ -1,6 +1,11 @@
 """The drill section of report.json: every hole judged on feedback (depth, X/Y still below
 R, retract mode), pecks, clamps, air-cuts per hole, and the cycle against the conventional
-cycle, the other hole order and the lower bound."""
+cycle, the other hole order and the lower bound.
+
+Its verdict fails the run on feedback that moved X/Y while the tip was below R, a hole
+deeper or shallower than programmed beyond cnc_analysis.drilling's limits, a peck's fast
+re-entry below the previous bottom, the tool below an obstacle's top while over it, or a
+vibrated hole's chip longer than its waveform's window."""
 from __future__ import annotations
 
 from types import SimpleNamespace
@@ -10,8 +15,10 @@ import numpy as np
 from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_msgs_py.units import to_mm
 
-from cnc_analysis.drilling import analyze_drilling, obstacle_clearance
+from cnc_analysis.drilling import DEPTH_OVER_LIMIT, DEPTH_SHORT_LIMIT, analyze_drilling, drilling_failures, \
+    obstacle_clearance
 from cnc_analysis.recording import Run
+from cnc_analysis.verdict import verdict
 
 from cnc_planner import planning
 from cnc_planner.kinds.drill.block import drill_cycle
@@ -20,7 +27,7 @@ from cnc_planner.kinds.drill.clamps import OBSTACLE_MARGIN
 from cnc_planner.kinds.drill.tilted import tilted, tilted_frame
 from cnc_planner.kinematics import Kinematics
 from cnc_planner.prediction import simulated_feedback
-from cnc_planner.vibration.report import feed_aircut, feeds
+from cnc_planner.vibration.report import CHIP_CRITERION, chip_failures, feed_aircut, feeds
 
 
 def drill_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray) -> dict:
@@ -59,12 +66,25 @@ def drill_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.n
         keep = ct >= min(e.time for e in conv_plan.events if e.name == "S1") - 1e-9
         ct, cfb = ct[keep], cfb[keep]
     conv = analyze_drilling(ct, *xyz(conv_plan.joints, cfb), cycle.holes, cycle.r_z, cycle.xy_tolerance, surfaces)
+    depths = [surface - cycle.planes(i)[2] for i, surface in enumerate(surfaces)]
+    failures = drilling_failures(result, depths)
     if job.vibration is not None:
-        hole_aircuts(run, result["holes"], surfaces)
+        failures += chip_failures(hole_aircuts(run, result["holes"], surfaces))
     if job.drill.peck is not None:
         result["pecks"] = peck_reentries(run, window)
+        low = result["pecks"]["min_reentry_height_mm"]
+        if low is not None and low < 0:
+            failures.append(f"a peck's fast re-entry went {-low:.4f} mm below the previous bottom")
     if job.drill.obstacles:
         result["obstacles"] = obstacle_section(job, kin, *xyz(run.joints, fb))
+        hits = [o for o in result["obstacles"] if o["min_clearance_mm"] is not None and o["min_clearance_mm"] < 0]
+        if hits:
+            failures.append(f"the tip went {-hits[0]['min_clearance_mm']:.4f} mm below the top of obstacle "
+                            f"{hits[0]['index']} while over it")
+    drilled = [h["depth_mm"] for h in result["holes"] if h.get("depth_mm") is not None]
+    result["verdict"] = verdict(criterion(job), failures, (
+        f"no X/Y motion below R on feedback; {len(drilled)} holes {min(drilled, default=0):.4f}-"
+        f"{max(drilled, default=0):.4f} mm deep for {', '.join(f'{to_mm(d):g}' for d in sorted(set(depths)))} mm"))
     result["conventional_cycle_time_s"] = conv["cycle_time_s"]
     if job.drill.order == "shortest":  # planning the other order costs a plan: only when asked
         result["order"] = order_section(job, machine, start, result["cycle_time_s"], xyz)
@@ -73,6 +93,19 @@ def drill_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.n
     else:
         result["lower_bound_s"] = lower_bound_time(machine, cycle, (start["x"], start["y"]))
     return result
+
+
+def criterion(job: SimpleNamespace) -> str:
+    """What the drill section's verdict holds the feedback to, with its limits."""
+    rules = [f"on feedback: no X/Y motion while the tip is below R; every hole within +{to_mm(DEPTH_OVER_LIMIT):g}/"
+             f"-{to_mm(DEPTH_SHORT_LIMIT):g} mm of its depth"]
+    if job.drill.peck is not None:
+        rules.append("every peck's fast re-entry above the previous bottom")
+    if job.drill.obstacles:
+        rules.append("the tip above every obstacle's top while over it")
+    if job.vibration is not None:
+        rules.append(CHIP_CRITERION.removeprefix("on feedback: "))
+    return "; ".join(rules)
 
 
 def peck_reentries(run: Run, window: np.ndarray) -> dict:
@@ -113,10 +146,12 @@ def order_section(job: SimpleNamespace, machine: Machine, start: dict, cycle_tim
     return {"drilled": "shortest", "shortest_cycle_time_s": cycle_time, "given_cycle_time_s": given_time}
 
 
-def hole_aircuts(run: Run, holes: list[dict], surfaces: list[float]) -> None:
+def hole_aircuts(run: Run, holes: list[dict], surfaces: list[float]) -> list[tuple[dict, dict | None]]:
     """Per hole, the air-cut share and the longest chip below the surface, on the commands
-    and on the feedback (the vibrated feed starts at R, in the air)."""
+    and on the feedback (the vibrated feed starts at R, in the air); returns each hole's
+    feed (its start event) with its air-cuts on feedback, for the verdict."""
     rows = {h["index"]: h for h in holes}
+    judged = []
     for start, end in feeds(run):
         row = rows.get(start.get("hole"))
         if row is None:
@@ -128,3 +163,5 @@ def hole_aircuts(run: Run, holes: list[dict], surfaces: list[float]) -> None:
             found = feed_aircut(run, times, positions, start, end, above)
             row["aircut"][source] = None if found is None else {
                 k: found[k] for k in ("revolutions", "revolutions_with_aircut", "aircut_fraction", "max_chip_revs")}
+        judged.append((start, row["aircut"]["feedback"]))
+    return judged

@@ -22,6 +22,7 @@ from cnc_msgs_py.machine import Machine
 from cnc_msgs_py.units import to_mm
 
 from cnc_analysis.recording import Run
+from cnc_analysis.verdict import verdict as section_verdict
 
 from cnc_planner.kinematics import Kinematics
 
@@ -124,4 +125,4 @@ def verdict(figures: dict, completed: bool) -> dict:
         said = (f"tip on feedback {deviation:.4f} mm from the programmed lines, "
                 f"{'within' if within else 'beyond'} the chord tolerance {limit:g} mm")
     return {"within_tolerance": within,
-            "verdict": {"passed": within, "criterion": "tip on feedback within chord_tolerance", "says": said}}
+            "verdict": section_verdict("tip on feedback within chord_tolerance", [] if within else [said], said)}

@@ -1,5 +1,7 @@
 """The thread section of report.json: passes, chips, depth and helix on feedback and on
-commands, in the thread block's program coordinates."""
+commands, in the thread block's program coordinates, and its verdict on feedback: depth
+short or over, the tool off its flank line and, for a vibrated thread, chips too long
+(cnc_analysis.threads.thread_failures holds the limits)."""
 from __future__ import annotations
 
 import json
@@ -8,9 +10,11 @@ from types import SimpleNamespace
 import numpy as np
 
 from cnc_msgs_py.machine import SPINDLE, Machine
+from cnc_msgs_py.units import to_mm
 
 from cnc_analysis.recording import Run
-from cnc_analysis.threads import analyze_thread
+from cnc_analysis.threads import CHIP_LIMIT_REVS, DEPTH_TOLERANCE, FLANK_TOLERANCE, analyze_thread, thread_failures
+from cnc_analysis.verdict import verdict
 
 from cnc_planner.kinematics import Kinematics
 
@@ -25,7 +29,15 @@ def thread_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.
         radius, z = kin.tip_radius_z(positions[:, run.column("x")], positions[:, run.column("z")])
         return analyze_thread(t, radius, z, positions[:, run.column(SPINDLE)], thread)
 
-    feedback = judge(run.feedback_t[window], run.feedback[window])
+    vibrated = job.vibration is not None
+    try:
+        feedback = judge(run.feedback_t[window], run.feedback[window])
+    except ValueError as err:  # no synchronised pass on feedback: no thread was cut
+        return {"error": str(err), "verdict": verdict(criterion(vibrated), [f"on feedback: {err}"], "")}
+    feedback["verdict"] = verdict(criterion(vibrated), thread_failures(feedback, vibrated), (
+        f"depth within {feedback['depth_error_mm']:.4f} mm (overcut {feedback['overcut_mm']:.4f} mm), "
+        f"on the flank within {feedback['helix_residual_mm']:.4f} mm"
+        + (f", longest chip {feedback['max_chip_revs']:.2f} rev" if vibrated else "") + " on feedback"))
     inside = run.command_t >= run.feedback_t[window][0]
     try:
         commanded = judge(run.command_t[inside], run.command[inside])
@@ -34,3 +46,10 @@ def thread_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.
         # commands need not trace a helix at all. The feedback is what is judged.
         return {**feedback, "commanded": {"error": str(err)}}
     return {**feedback, "commanded": {k: commanded[k] for k in ("max_chip_revs", "helix_residual_mm", "depth_error_mm")}}
+
+
+def criterion(vibrated: bool) -> str:
+    """What the thread's verdict holds its feedback to."""
+    return (f"on feedback: depth within {to_mm(DEPTH_TOLERANCE):g} mm, short or over; the tool within "
+            f"{to_mm(FLANK_TOLERANCE):g} mm of its flank line (helix residual)"
+            + (f"; every cutting pass's chip within {CHIP_LIMIT_REVS:g} revolution" if vibrated else ""))

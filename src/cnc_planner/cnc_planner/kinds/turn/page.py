@@ -5,18 +5,17 @@ from cnc_planner.kinds.kind import Card
 from cnc_planner.page_format import mm
 
 
-GOUGE_LIMIT_MM = 0.01  # feedback into the finished part beyond this is a gouge
-
-
 def cards(turn: dict) -> list[Card]:
+    """The section's verdict (a gouge into the part, kinds.turn.report.GOUGE_LIMIT) and its air moves."""
     gouge = turn.get("max_gouge_part_mm", 0.0)
     left = turn.get("stock_left_mm")
-    value = "no gouge" if gouge <= GOUGE_LIMIT_MM else f"gouge {gouge:.3f} mm"
+    passed = turn["verdict"]["passed"]
+    value = "no gouge" if passed else f"gouge {gouge:.3f} mm"
     detail = (f"into the part {mm(gouge)} on feedback, into the allowance {mm(turn.get('max_gouge_mm'))}, "
               f"commanded {mm(turn.get('max_gouge_commanded_mm'))}")
     if left is not None:
         detail = f"stock left {mm(left)}; " + detail
-    return [("Stock left / gouge", value, detail, "ok" if gouge <= GOUGE_LIMIT_MM else "bad"),
+    return [("Stock left / gouge", value, detail, "ok" if passed else "bad"),
             ("Air moves", f"{turn.get('air_feed_mm', 0):.1f} mm",
              f"air cut at feed, vs {turn.get('naive_air_feed_mm', 0):.1f} mm for passes started at the "
              f"virtual cylinder; path {turn.get('path_mm', 0):.0f} mm vs {turn.get('naive_path_mm', 0):.0f} mm "

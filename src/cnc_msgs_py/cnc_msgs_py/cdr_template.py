@@ -11,12 +11,13 @@ from __future__ import annotations
 
 from functools import cache
 
-from rosbags.typesys import Stores, get_typestore
-
 
 @cache
 def _typestore():
-    """rosbags' message types (0.1 s to build: only once a template is first needed)."""
+    """rosbags' message types (0.1 s to build: only once a template is first needed;
+    imported here too, so that a node's --help and the planning core load no rosbags)."""
+    from rosbags.typesys import Stores, get_typestore
+
     return get_typestore(Stores.ROS2_JAZZY)
 
 

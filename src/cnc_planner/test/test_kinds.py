@@ -31,3 +31,18 @@ def test_an_unknown_kind_is_refused_by_name():
 ])
 def test_statuses_count_what_a_machinist_counts(job, count):
     assert progress_count(parse_job(load_job_file(JOBS / job))) == count
+
+
+def test_every_report_section_and_figure_module_a_kind_names_is_found():
+    """The registry names them as "module:function" (found only to report): a typo would
+    only show when a job of that kind is reported, so each is resolved here."""
+    sections = [kind.report for kind in KINDS.values() if kind.report is not None]
+    assert {s.key for s in sections} == {"drill", "turn", "thread", "kinematics", "program"}
+    for section in sections:
+        assert callable(section.judge), section.judge_at
+        assert section.cards is None or callable(section.cards), section.cards_at
+        assert section.tables is None or callable(section.tables), section.tables_at
+    for kind in KINDS.values():
+        if kind.figures is not None:
+            assert callable(kind.figures.draw) and isinstance(kind.figures.captions, dict), kind.name
+            assert kind.figures.aircut is None or callable(kind.figures.aircut), kind.name

@@ -15,7 +15,8 @@ from cnc_msgs_py.units import mm
 from cnc_planner.planning import plan_job
 from cnc_planner.kinematics import Kinematics, KinematicsError
 from cnc_planner.kinds.path.exact import LEAD_S
-from cnc_planner.kinds.path.report import _segment_distances, distance_to_polyline, path_figures
+from cnc_planner.kinds.path.polyline import _segment_distances, distance_to_polyline
+from cnc_planner.kinds.path.report import path_figures
 from cnc_planner.prediction import simulated_feedback
 
 JOBS = Path(__file__).resolve().parents[3] / "config" / "jobs"

@@ -4,26 +4,40 @@ The executive, the segmenting, the report, the figures and the progress display 
 kind up in ``cnc_planner.kinds.KINDS`` and call these; none of them switches on a kind's
 name. Everything but ``name`` and ``plan`` is optional: a kind without a report section
 gets the sections every job gets (cycle time, following error, air-cuts of vibrated feeds).
+
+A kind's report section, page and figures are named here as "module:function" and imported
+on first use: the registry is what planning looks kinds up in, and planning must not load
+the judge (cnc_analysis, rosbags), matplotlib or jinja2 with it (the planner node and
+cnc-plan started in 0.5-1.5 s with them).
 """
 from __future__ import annotations
 
 import importlib
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cache
 from types import SimpleNamespace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cnc_msgs_py.machine import Machine
 
-from cnc_analysis.recording import Run
-
 from cnc_planner.kinematics import Kinematics
 from cnc_planner.motion.builder import PlanBuilder
 
+if TYPE_CHECKING:  # a type only: importing the recording would load the judge and rosbags with the registry
+    from cnc_analysis.recording import Run
+
 
 Job = SimpleNamespace  # a validated job document in SI units (cnc_msgs_py.job.parse_job)
+
+
+@cache
+def resolve(ref: str) -> Any:
+    """What a "module:name" reference names, its module imported on first use."""
+    module, _, name = ref.partition(":")
+    return getattr(importlib.import_module(module), name)
 
 
 @dataclass(frozen=True)
@@ -59,14 +73,27 @@ Table = tuple[str, list[str], list[list]]  # a table on the report page: heading
 class ReportSection:
     """The kind's section of report.json: ``judge`` reads the recorded feedback in the job's
     window and returns the section under ``key``; ``cards`` and ``tables`` put it on the
-    report page."""
+    report page. Each is given as a "module:function" reference (``judge_at``, ``cards_at``,
+    ``tables_at``) and imported when first called for."""
 
     key: str
-    judge: Callable[[Run, Job, Machine, np.ndarray], dict]
+    judge_at: str
     judges_chips: bool = False  # it judges its own air-cuts (else vibrated feeds get the aircut section)
     times_cycle: bool = False  # its cycle_time_s (and conventional / lower bound) is the page's cycle time
-    cards: Callable[[dict], list[Card]] | None = None
-    tables: Callable[[dict], list[Table]] | None = None
+    cards_at: str | None = None
+    tables_at: str | None = None
+
+    @property
+    def judge(self) -> Callable[[Run, Job, Machine, np.ndarray], dict]:
+        return resolve(self.judge_at)
+
+    @property
+    def cards(self) -> Callable[[dict], list[Card]] | None:
+        return resolve(self.cards_at) if self.cards_at else None
+
+    @property
+    def tables(self) -> Callable[[dict], list[Table]] | None:
+        return resolve(self.tables_at) if self.tables_at else None
 
 
 @dataclass(frozen=True)
@@ -83,15 +110,15 @@ class Figures:
 
     @property
     def draw(self) -> Callable[[Run, Job, Machine, np.ndarray, dict], list[tuple[Any, str]]]:
-        return importlib.import_module(self.module).draw
+        return resolve(f"{self.module}:draw")
 
     @property
     def captions(self) -> dict[str, str]:
-        return importlib.import_module(self.module).CAPTIONS
+        return resolve(f"{self.module}:CAPTIONS")
 
     @property
     def aircut(self) -> Callable[[dict], dict | None] | None:
-        return getattr(importlib.import_module(self.module), self.aircut_summary) if self.aircut_summary else None
+        return resolve(f"{self.module}:{self.aircut_summary}") if self.aircut_summary else None
 
 
 @dataclass(frozen=True)

@@ -28,8 +28,6 @@ import numpy as np
 
 from cnc_msgs_py.machine import Axis
 
-from cnc_analysis.aircut import analyze_aircut
-
 from cnc_planner.vibration.waveform import TWO_PI, Vibration, VibrationError, VibrationFeed, _min_q, _speed_limits
 
 if TYPE_CHECKING:
@@ -105,7 +103,12 @@ def predicted_chip(candidate: Candidate, feed_per_rev: float, spindle_speed: flo
 
     ``rests``: the tool rests at the feed's end while the command settles (a move's
     feed), cutting the ring the last revolutions left, which lengthens the last chip; else
-    it leaves on arrival (a drill's retract carries the settling) and the chip ends there."""
+    it leaves on arrival (a drill's retract carries the settling) and the chip ends there.
+
+    The chip is measured by the judge's own air-cut analysis, imported here rather than with
+    the module: importing the planner loads none of the judge."""
+    from cnc_analysis.aircut import analyze_aircut
+
     length = feed_per_rev * candidate.window * TRIAL_WINDOWS if length is None else length
     move = VibrationFeed(length, feed_per_rev, candidate.vibration, spindle_speed, axis, start_angle=start_angle,
                          drive_model_factory=drive_model_factory, servo_period=servo_period)

@@ -7,11 +7,9 @@ from types import SimpleNamespace
 
 from cnc_msgs_py.machine import SPINDLE
 
-from . import page
 from .block import drill_cycle
 from .cycle import DrillCycle
 from .planning import plan_drill
-from .report import drill_section
 from cnc_planner.kinds.kind import Figures, JobKind, ProgressCount, ReportSection, Segmenting
 from cnc_planner.kinematics import Kinematics
 from cnc_planner.motion.builder import PlanBuilder
@@ -62,8 +60,8 @@ KIND = JobKind(
     layouts=("mill3", "5ax_table_table", "5ax_head_table"),
     segmenting=Segmenting(size=SEGMENT_HOLES, index="hole", count=lambda job: len(job.drill.holes), part=_part,
                           check_whole=_check_whole, prepare=_prepare, settle=_hold_until_settled),
-    report=ReportSection("drill", drill_section, judges_chips=True, times_cycle=True, cards=page.cards,
-                         tables=page.tables),
+    report=ReportSection("drill", f"{__name__}.report:drill_section", judges_chips=True, times_cycle=True,
+                         cards_at=f"{__name__}.page:cards", tables_at=f"{__name__}.page:tables"),
     figures=Figures(f"{__name__}.figures", aircut_summary="first_hole_aircut"),
     progress=ProgressCount("S1", "hole", total=lambda job: len(job.drill.holes)),
 )

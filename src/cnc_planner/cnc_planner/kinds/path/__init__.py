@@ -2,14 +2,12 @@
 every layout, 5-axis included."""
 from __future__ import annotations
 
-from .page import cards
 from .planning import plan_path
-from .report import path_section
 from cnc_planner.kinds.kind import JobKind, ReportSection
 
 
 KIND = JobKind(
     name="path",
     plan=plan_path,
-    report=ReportSection("kinematics", path_section, cards=cards),
+    report=ReportSection("kinematics", f"{__name__}.report:path_section", cards_at=f"{__name__}.page:cards"),
 )

@@ -40,7 +40,7 @@ from cnc_servo_bridge.drive import DriveModel
 from cnc_planner.kinematics import Kinematics, SampledPath
 from cnc_planner.motion.compensation import COMPENSATION_TAIL, compensation_band, learned_command
 
-from .report import distance_to_polyline
+from .polyline import distance_to_polyline
 
 LEAD_S = 0.1  # s at rest before the traverse: the compensated command leads the motion by up to this
 SLOWDOWN = 0.7  # feed factor per try where the predicted tip misses the tolerance

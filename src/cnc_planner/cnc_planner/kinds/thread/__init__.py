@@ -3,9 +3,7 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
-from . import page
 from .planning import plan_thread_job
-from .report import thread_section
 from cnc_planner.kinds.kind import Figures, JobKind, ProgressCount, ReportSection
 
 
@@ -20,7 +18,8 @@ KIND = JobKind(
     name="thread",
     plan=plan_thread_job,
     layouts=("lathe", "lathe_y"),
-    report=ReportSection("thread", thread_section, judges_chips=True, cards=page.cards, tables=page.tables),
+    report=ReportSection("thread", f"{__name__}.report:thread_section", judges_chips=True,
+                         cards_at=f"{__name__}.page:cards", tables_at=f"{__name__}.page:tables"),
     figures=Figures(f"{__name__}.figures"),
     progress=ProgressCount("thread_pass", "thread pass", total=thread_passes),
 )

@@ -15,9 +15,6 @@ import numpy as np
 
 from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_msgs_py.units import to_mm
-from cnc_analysis.threads import (
-    CHIP_LIMIT_REVS, CUT_TOLERANCE, cuts_against_envelope, longest_runs,
-)
 
 from cnc_planner.kinds.thread.helix import helix_peaks
 from cnc_planner.kinds.thread.ramps import z_to_speed
@@ -172,7 +169,10 @@ def _check_length(spec: ThreadSpec) -> None:
 
 def _chip_revs(spec: ThreadSpec, vib: ThreadVibration) -> np.ndarray:
     """Longest continuous cut (revolutions) of every vibrated pass on the ideal geometry,
-    judged as cnc_analysis.threads judges feedback: against the envelope of earlier passes."""
+    judged as cnc_analysis.threads judges feedback: against the envelope of earlier passes.
+    The judge's own measure, imported when a chip is checked: importing the planner loads no judge."""
+    from cnc_analysis.threads import CUT_TOLERANCE, cuts_against_envelope, longest_runs
+
     passes = [p for p in passes_of(spec, vib) if not p.spring]
     s = spec.direction
     face, end = s * -spec.start_z / spec.pitch, s * (spec.end_z - spec.start_z) / spec.pitch
@@ -202,6 +202,8 @@ def _check_chips(spec: ThreadSpec, vib: ThreadVibration, machine: Machine) -> No
     to change and a parameter set that works on this machine: phase_shift (if 180 deg
     would do), Q (the least that works), or D (the least in D_TRIES steps that works),
     with the highest spindle speed the axes follow it at where that is below the job's."""
+    from cnc_analysis.threads import CHIP_LIMIT_REVS  # the judge's limit, loaded with the check (_chip_revs)
+
     if spec.spring_passes < 1:
         raise ThreadError(
             "thread.spring_passes", "0 with a vibration leaves the last pass's returns standing; need >= 1"

@@ -4,9 +4,7 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
-from . import page
 from .planning import plan_turn
-from .report import turn_section
 from .roughing import plan_roughing
 from cnc_planner.kinds.kind import Figures, JobKind, ProgressCount, ReportSection
 
@@ -24,7 +22,8 @@ KIND = JobKind(
     name="turn",
     plan=plan_turn,
     layouts=("lathe", "lathe_y"),
-    report=ReportSection("turn", turn_section, times_cycle=True, cards=page.cards),
+    report=ReportSection("turn", f"{__name__}.report:turn_section", times_cycle=True,
+                         cards_at=f"{__name__}.page:cards"),
     figures=Figures(f"{__name__}.figures"),
     progress=ProgressCount("pass", "pass", total=cutting_passes),
 )

@@ -1,0 +1,48 @@
+"""The ``program`` section of report.json: each operation of a G-code program judged by its
+own kind's judge on its share of the recording, imported only to report."""
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from types import SimpleNamespace
+
+import numpy as np
+
+from cnc_msgs_py.machine import Machine
+
+from cnc_analysis.recording import Run
+
+from cnc_planner.kinds.program import OPERATION, kinds
+
+
+def _operation_run(run: Run, part: np.ndarray, t0: float, t1: float, doc: dict) -> Run:
+    """The recording as one operation's judge must see it: only the operation's share of the
+    feedback and commands (a judge may look past its window, where the next operation cuts),
+    and the operation's own goal (a judge may read the goal as sent, in mm)."""
+    sent = (run.command_t >= t0 - 1e-9) & (run.command_t < t1 - 1e-9)
+    return replace(run, feedback_t=run.feedback_t[part], feedback=run.feedback[part],
+                   feedback_velocity=run.feedback_velocity[part], command_t=run.command_t[sent],
+                   command=run.command[sent], command_velocity=run.command_velocity[sent],
+                   goals=[json.dumps(doc)])
+
+
+def program_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray) -> dict:
+    """One section per operation, judged by its kind's own judge on its share of the feedback."""
+    registry = kinds()
+    t = run.feedback_t
+    begin = t[window][0] if window.any() else 0.0
+    starts = sorted(e["stamp_ns"] / 1e9 for e in run.events
+                    if e.get("name") == OPERATION and "stamp_ns" in e and e["stamp_ns"] / 1e9 >= begin - 1e-9)
+    sections = []
+    for index, (line, op, doc) in enumerate(job.program.operations):
+        entry = {"index": index, "line": line, "kind": op.kind}
+        if index < len(starts):
+            t1 = starts[index + 1] if index + 1 < len(starts) else np.inf
+            part = window & (t >= starts[index] - 1e-9) & (t < t1 - 1e-9)
+            entry["duration_s"] = float(t[part][-1] - t[part][0]) if part.any() else 0.0
+            section = registry[op.kind].report
+            if section is not None and part.any():
+                own = _operation_run(run, part, starts[index], t1, doc)
+                entry[section.key] = section.judge(own, op, machine, np.ones(len(own.feedback_t), dtype=bool))
+        sections.append(entry)
+    return {"operations": sections}

@@ -136,7 +136,9 @@ BAD = [
     ("G21\nG0 X0 Y0 Z5\nG1 X3 F100", "line 4: end of file: the program ends without M2 or M30"),
     ("G21\nG0 X0 Y0 Z5\nG1 X3\nM2", "line 3: G1: no feed given (F)"),
     ("G21\nG0 X0 Y0 Z5 Q3\nM2", "line 2: Q3: not used by anything in this line"),
-    ("G21\no100 while [1]\nM2", "line 2: ["),
+    ("G21\no100 while [1]\nM2", "line 2: o100 while: is never closed"),
+    ("G21\no100 while [1]\no100 endwhile\nM2", "line 3: o100 endwhile: loops jumped back 100000 times"),
+    ("G21\n#1=[2*[3+#2]\nM2", "line 2: [: an expression is not closed"),
     ("G21\nM3 S500\nG0 X0 Y0 Z5\nG81 X0 Y0 Z-3 R2 F0.5\nM2", "line 4: drill: drill.feed"),
 ]
 
@@ -163,7 +165,8 @@ M2"""
 GOOD_LINES = GOOD.splitlines()
 CONFLICTS = ["G20 G21", "G90 G91", "G0 G1 X1", "G17 G18", "G94 G95", "M3 M5", "G98 G99", "G81 G83 X1",
              "G54 G55", "G7 G8", "G43 G49", "G90.1 G91.1"]
-UNSUPPORTED = ["G19", "G41 D1", "G42", "G96 S100", "M0", "M1", "#1=2", "G1 X[1+2]", "G1 ^10 @5", "A10", "G33 Z1 K1",
+UNSUPPORTED = ["G19", "G41 D1", "G42", "G96 S100", "M0", "M1", "#1=#<nope>", "G1 X[1/0]", "G1 ^10 @5", "#5400=1",
+               "G1 X[SQRT[-1]]", "O100 ENDWHILE", "O<missing> CALL", "G1 X#<_hal[x]>", "#1=[1 FOO 2]", "A10", "G33 Z1 K1",
                "G84 Z-1 R1", "G93", "O100 WHILE [1]", "/G1 X1", "G28", "G38.2 Z-1", "G1 X1 X2", "N5 N6", "M4",
                "G81 X0 Y0 Z-3 F100", "G83 X0 Y0 Z-3 R2 F100", "G2 X5 Y5 R1 F100", "G76 P1 Z-1 I-1 J0.1 K0.5",
                "G71 Q5 I1", "G1 Y5", "T99 M6", "G55", "(CNC,WOBBLE ON)", "G1 F-5 X1", "(unclosed", "G0 X1 Q2"]
@@ -185,7 +188,7 @@ def bad_programs(draw) -> tuple[str, int]:
     elif how == "unsupported":
         word = draw(st.sampled_from(UNSUPPORTED))
     else:
-        word = draw(st.sampled_from(["G", "X", "Q", "@", "G1 X", "M", "%%", "G999", "M77", "Z--1", "K"]))
+        word = draw(st.sampled_from(["G", "X", "Q", "@", "G1 X", "M", "%%", "G999", "M77", "Z-+", "K", "#", "X[", "O"]))
     lines.insert(at, word)
     return "\n".join(lines), at + 1
 

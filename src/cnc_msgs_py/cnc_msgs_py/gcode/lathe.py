@@ -111,25 +111,29 @@ def _profile(tr: "Translator", blocks: list[Block], start: tuple[float, float], 
     return out
 
 
-def g71(tr: "Translator", b: Block, used: set[str], body: list[Block], index: int) -> int:
-    """G71 Q<sub> (or P<N> Q<N>) X Z D I R: roughing; returns the body index to skip to."""
+def _numbered_blocks(tr: "Translator", b: Block, p: int, q: int) -> list[Block]:
+    """The blocks N<p> to N<q> following the G71 line, taken from the program's run (so that
+    they are not run again as moves)."""
+    blocks: list[Block] = []
+    for block in tr.source:
+        if blocks or block.number == p:
+            blocks.append(block)
+            if block.number == q:
+                return blocks
+    raise GcodeError(b.line, word_text("P", p), "P and Q must name N numbers of the contour following the G71 line, "
+                                               "P first")
+
+
+def g71(tr: "Translator", b: Block, used: set[str]) -> None:
+    """G71 Q<sub> (or P<N> Q<N>) X Z D I R: roughing."""
     s = tr.state
     x0, z0 = _at(tr, b, "G71")
     q = _word(b, used, "Q", "G71")
-    skip_to = -1
     if "P" in b.words:
         used.add("P")
-        p = int(b.words["P"])
-        if p not in tr.numbered or int(q) not in tr.numbered or tr.numbered[int(q)] < tr.numbered[p]:
-            raise GcodeError(b.line, word_text("P", b.words["P"]), "P and Q must name N numbers of the contour, P first")
-        blocks = body[tr.numbered[p]:tr.numbered[int(q)] + 1]
-        if tr.numbered[p] <= index:
-            raise GcodeError(b.line, word_text("P", b.words["P"]), "the contour must follow the G71 line")
-        skip_to = tr.numbered[int(q)]
+        blocks = _numbered_blocks(tr, b, int(b.words["P"]), int(q))
     else:
-        if int(q) not in tr.subs:
-            raise GcodeError(b.line, word_text("Q", q), "no subroutine of that number (o<Q> sub ... endsub)")
-        blocks = tr.subs[int(q)]
+        blocks = tr.executor.expand(str(int(q)), b.line)
     sx = s.length(b.words["X"]) / (2.0 if s.diameter else 1.0) if "X" in b.words else x0
     sz = s.length(b.words["Z"]) if "Z" in b.words else z0
     used.update(k for k in "XZ" if k in b.words)
@@ -150,4 +154,3 @@ def g71(tr: "Translator", b: Block, used: set[str], body: list[Block], index: in
             "origin": [z0, x0], "finish_allowance": allowance, "finishing_pass": True}
     tr._begin(b.line, "turn", ("G71", b.line), turn)
     tr._flush()
-    return skip_to

@@ -1,27 +1,30 @@
-"""RS274/NGC lines into blocks of words, as LinuxCNC 2.9 reads them.
+"""RS274/NGC lines as LinuxCNC 2.9 reads them: each line once into its words, parameter
+settings and O-word, unevaluated (``Line``); ``Line.evaluate`` gives the ``Block`` of values
+each time the line runs.
 
-Spaces inside a line mean nothing, letters are case-insensitive, comments are ``( ... )``
-(not nested) or ``;`` to the end of the line, a line of ``%`` marks the file's ends. What
-this front end does not evaluate (parameters ``#``, expressions ``[ ]``, polar ``^`` ``@``,
-block delete ``/``, O-word control flow other than ``sub``/``endsub``) is refused by line
+Spaces outside comments mean nothing, letters are case-insensitive, comments are ``( ... )``
+(not nested) or ``;`` to the end of the line, a line of ``%`` marks the file's ends. A word's
+value is a number, a parameter (``#3``, ``#<depth>``), an ``[expression]`` or a function
+(``expressions``); ``#n=value`` sets a parameter after every value of its line is read
+(LinuxCNC's reads-before-writes). Polar ``^`` ``@`` and block delete ``/`` are refused by line
 and word, never skipped.
 """
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
+from typing import Callable
 
 from ..schema import JobError
+from .expressions import Env, Expr, ExprError, Reader, parameter_target, read_name, read_value
 
 LETTERS = set("ABCDEFGHIJKLMNPQRSTUVWXYZ")
-# A number as RS274/NGC writes it: optional sign, digits with an optional decimal point.
-NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)")
-O_WORD = re.compile(r"O(\d+)(SUB|ENDSUB|CALL)?$")
-NOT_EVALUATED = {"#": "parameters are not evaluated by this front end",
-                 "[": "expressions are not evaluated by this front end",
-                 "^": "polar coordinates are not supported",
-                 "@": "polar coordinates are not supported",
-                 "/": "block delete is not supported"}
+NOT_EVALUATED = {"^": "polar coordinates are not supported",
+                 "@": "polar coordinates are not supported"}
+# O-word keywords, longest first so that ENDSUB is not read as END...
+O_KEYWORDS = ("ENDREPEAT", "ENDWHILE", "CONTINUE", "ENDSUB", "ELSEIF", "REPEAT", "RETURN", "ENDIF", "BREAK",
+              "WHILE", "ELSE", "CALL", "SUB", "IF", "DO")
+O_CONDITION = {"if", "elseif", "while", "repeat"}  # need one [expression]
+O_OPTIONAL = {"endsub", "return"}  # may return one [expression]
 
 
 class GcodeError(JobError):
@@ -42,8 +45,8 @@ class Block:
     m: list[float] = field(default_factory=list)
     words: dict[str, float] = field(default_factory=dict)
     comments: list[str] = field(default_factory=list)
-    o_word: tuple[int, str] | None = None  # (number, 'sub' | 'endsub' | 'call')
     number: int | None = None  # N
+    where: str = ""  # "name.ngc: line 3" for a line of a subroutine file
 
     def has_axes(self) -> bool:
         return any(k in self.words for k in "XYZ")
@@ -79,57 +82,158 @@ def _strip_comments(text: str, line: int) -> tuple[str, list[str]]:
     return "".join(out), comments
 
 
-def read_block(text: str, line: int) -> Block | None:
-    """One line as a Block; None for a blank or comment-only line or a ``%`` line."""
+
+
+@dataclass
+class OWord:
+    """An O-word statement: ``o100 while [#1 LT 3]``; ``name`` is ``100`` or a ``<name>``'s."""
+
+    name: str
+    kind: str  # sub endsub return call if elseif else endif while endwhile do repeat endrepeat break continue
+    args: list[Expr] = field(default_factory=list)
+
+    @property
+    def text(self) -> str:
+        label = self.name if self.name.isdigit() else f"<{self.name}>"
+        return f"o{label} {self.kind}"
+
+
+Setting = tuple[Callable[[Env], "int | str | float"], Expr]
+
+
+@dataclass
+class Line:
+    """One line as read once: its words and parameter settings unevaluated, or an O-word."""
+
+    line: int
+    number: int | None = None
+    words: list[tuple[str, Expr]] = field(default_factory=list)
+    settings: list[Setting] = field(default_factory=list)
+    comments: list[str] = field(default_factory=list)
+    o: OWord | None = None
+
+    def evaluate(self, env: Env, line: int | None = None) -> Block:
+        """The line's values now, its parameter settings done after every read (LinuxCNC's rule)."""
+        at = self.line if line is None else line
+        block = Block(at, number=self.number, comments=self.comments)
+        try:
+            values = [(letter, value(env)) for letter, value in self.words]
+            writes = [(target(env), value(env)) for target, value in self.settings]
+        except ExprError as err:
+            raise GcodeError(at, err.word, err.reason) from None
+        for letter, value in values:
+            if letter == "G":
+                block.g.append(value)
+            elif letter == "M":
+                block.m.append(value)
+            elif letter in block.words:
+                raise GcodeError(at, word_text(letter, value), f"{letter} given twice in one line")
+            else:
+                block.words[letter] = value
+        for target, value in writes:
+            try:
+                env.write(target, value)  # type: ignore[attr-defined]
+            except ExprError as err:
+                raise GcodeError(at, err.word, err.reason) from None
+        return block
+
+
+def _o_word(r: Reader, line: Line) -> OWord:
+    r.k += 1  # the O
+    if r.peek() == "<":
+        name = read_name(r)
+    else:
+        start = r.k
+        while r.peek().isdigit():
+            r.k += 1
+        if r.k == start:
+            raise ExprError("O", "needs a number or a <name>")
+        name = str(int(r.text[start:r.k]))
+    kind = next((k for k in O_KEYWORDS if r.text.startswith(k, r.k)), None)
+    label = name if name.isdigit() else f"<{name}>"
+    if kind is None:
+        raise ExprError(f"o{label}", "needs sub, endsub, return, call, if, elseif, else, endif, while, endwhile, "
+                                     "do, repeat, endrepeat, break or continue")
+    r.k += len(kind)
+    o = OWord(name, kind.lower())
+    while r.peek() == "[":
+        o.args.append(read_value(r))
+    if not r.done():
+        raise ExprError(o.text, f"unexpected {r.text[r.k:r.k + 12]!r} after the O-word")
+    if o.kind in O_CONDITION and len(o.args) != 1:
+        raise ExprError(o.text, "needs one [expression]")
+    if o.kind in O_OPTIONAL and len(o.args) > 1:
+        raise ExprError(o.text, "returns at most one [expression]")
+    if o.kind not in O_CONDITION | O_OPTIONAL | {"call"} and o.args:
+        raise ExprError(o.text, "takes no expression")
+    if line.words or line.settings:
+        raise ExprError(o.text, "an O-word cannot share its line with other words")
+    return o
+
+
+def read_line(text: str, line: int) -> Line | None:
+    """One line read once; None for a blank line or a ``%`` line."""
     code, comments = _strip_comments(text, line)
     code = "".join(code.split()).upper()
     if code == "%":
         return None
-    block = Block(line, comments=comments)
+    out = Line(line, comments=comments)
     if not code:
-        return block if comments else None
+        return out if comments else None
     for mark, why in NOT_EVALUATED.items():
         if mark in code:
             raise GcodeError(line, mark, why)
-    if code.startswith("O"):
-        o = O_WORD.match(code)
-        if o is None or o.group(2) is None:
-            raise GcodeError(line, code[:12], "O-word control flow other than sub/endsub/call is not supported")
-        block.o_word = (int(o.group(1)), o.group(2).lower())
-        return block
-    k = 0
-    while k < len(code):
-        letter = code[k]
-        if letter not in LETTERS:
-            raise GcodeError(line, letter, "not a G-code word letter")
-        number = NUMBER.match(code, k + 1)
-        if number is None:
-            raise GcodeError(line, letter, "needs a number after the letter")
-        value = float(number.group(0))
-        k = number.end()
-        if letter == "G":
-            block.g.append(value)
-        elif letter == "M":
-            block.m.append(value)
-        elif letter == "N":
-            if block.number is not None or block.g or block.m or block.words:
-                raise GcodeError(line, word_text("N", value), "a line number must come first, once")
-            block.number = int(value)
-        elif letter in block.words:
-            raise GcodeError(line, word_text(letter, value), f"{letter} given twice in one line")
-        else:
-            block.words[letter] = value
-    return block
+    if code.startswith("/"):
+        raise GcodeError(line, "/", "block delete is not supported")
+    r = Reader(code)
+    try:
+        while not r.done():
+            letter = r.peek()
+            if letter == "#":
+                target = parameter_target(r)
+                r.expect("=", "after the parameter it sets")
+                out.settings.append((target, read_value(r)))
+                continue
+            if letter == "O":
+                out.o = _o_word(r, out)
+                break
+            if letter not in LETTERS:
+                raise ExprError(letter, "not a G-code word letter")
+            r.k += 1
+            if r.done():
+                raise ExprError(letter, "needs a number after the letter")
+            value = read_value(r)
+            if letter == "N":
+                if out.number is not None or out.words or out.settings:
+                    raise ExprError("N", "a line number must come first, once")
+                out.number = int(value(_NO_PARAMETERS))
+            else:
+                out.words.append((letter, value))
+    except ExprError as err:
+        raise GcodeError(line, err.word, err.reason) from None
+    return out
 
 
-def read_program(text: str) -> list[Block]:
-    """Every line of a program as blocks (line numbers count from 1); stops at M2/M30's line
-    is the interpreter's business, not the reader's."""
+class _NoParameters:
+    """N numbers are plain numbers: a parameter there is refused."""
+
+    def read(self, number: float) -> float:
+        raise ExprError("N", "a line number cannot read a parameter")
+
+    read_named = read  # type: ignore[assignment]
+    exists = read  # type: ignore[assignment]
+
+
+_NO_PARAMETERS = _NoParameters()
+
+
+def read_lines(text: str) -> list[Line]:
+    """Every line of a program (line numbers count from 1), blank ones left out."""
     if not isinstance(text, str):
         raise GcodeError(0, "program", "must be G-code text")
-    blocks = []
+    lines = []
     for n, raw in enumerate(text.splitlines(), start=1):
-        block = read_block(raw, n)
-        if block is not None:
-            blocks.append(block)
-    return blocks
+        line = read_line(raw, n)
+        if line is not None:
+            lines.append(line)
+    return lines

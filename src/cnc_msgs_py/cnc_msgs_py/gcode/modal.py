@@ -39,7 +39,7 @@ G_REFUSED: dict[float, str] = {
     96.0: "constant surface speed cannot be held: an operation turns at one rpm (use G97 and S)",
 }
 M_GROUPS: dict[float, str] = {2.0: "stop", 30.0: "stop", 3.0: "spindle", 4.0: "spindle", 5.0: "spindle",
-                              6.0: "tool change", 7.0: "coolant", 8.0: "coolant", 9.0: "coolant"}
+                              6.0: "tool change", 61.0: "tool change", 7.0: "mist", 8.0: "flood", 9.0: "coolant"}
 M_REFUSED: dict[float, str] = {
     0.0: "a program pause cannot be kept in one planned goal",
     1.0: "an optional stop cannot be kept in one planned goal",
@@ -87,6 +87,9 @@ class Modal:
     tool: int = 0  # in the spindle (M6)
     next_tool: int | None = None  # T
     length_offset: bool = False  # G43
+    length_tool: int = 0  # whose length G43 applies (H, else the tool in the spindle)
+    mist: bool = False  # M7
+    flood: bool = False  # M8
     work_offset: str = "G54"
     position: dict[str, float] = field(default_factory=dict)  # known axes, mm, program coordinates
 

@@ -10,11 +10,13 @@ from __future__ import annotations
 import copy
 from dataclasses import dataclass, field
 
-from . import arcs
+from . import arcs, system
+from .control import Executor
 from .drilling import hole
 from .lathe import g71, g76
-from .lexer import Block, GcodeError, read_program, word_text
+from .lexer import Block, GcodeError, word_text
 from .modal import DRILL_CYCLES, MOTION, Modal, check_groups
+from .parameters import Parameters, whole
 
 DIRECTIVE = "CNC,"  # our comments: (CNC,VIBRATION D=1.5 Q=1.2), (CNC,OVERLAP OFF), (CNC,MACHINE mill3)
 VIBRATION_KEYS = {"D": "D", "Q": "Q", "E": "E", "R": "R", "PHASE": "phase_shift", "DSTEP": "D_step"}
@@ -40,6 +42,7 @@ class Context:
     work_offsets: dict[str, dict] = field(default_factory=dict)  # G55..G59 -> setup
     stock: list | None = None
     start: dict[str, float] = field(default_factory=dict)
+    subroutines: dict[str, str] = field(default_factory=dict)  # name -> the text of <name>.ngc
 
 
 def directives(comments: list[str]) -> list[tuple[str, list[str]]]:
@@ -75,66 +78,45 @@ class Translator:
         self.vibration: dict | None = None
         self.overlap = "auto"
         self.cycle: dict = {}  # sticky canned-cycle words (R, Z, Q, P) and the initial Z
-        self.subs: dict[int, list[Block]] = {}
-        self.numbered: dict[int, int] = {}  # N -> index in blocks
+        self.params = Parameters(lambda name: system.named(self, name), lambda n: system.numbered(self, n))
+        self.line = 0  # the line running, for #<_line>
 
     # ---- the program
     def run(self, text: str) -> list[Operation]:
-        blocks = read_program(text)
-        body = self._collect_subs(blocks)
+        self.executor = Executor(text, self.ctx.subroutines, self.params)
+        self.source = self.executor.blocks()
         ended = False
-        skip_to = -1
-        for i, block in enumerate(body):
-            if i <= skip_to:
-                continue
-            self._directives(block)
-            check_groups(block)
-            used: set[str] = set()
-            stop, skip_to = self._block(block, used, body, i)
-            left = [k for k in block.words if k not in used]
-            if left:
-                k = left[0]
-                raise GcodeError(block.line, word_text(k, block.words[k]), "not used by anything in this line")
+        for block in self.source:
+            try:
+                stop = self._line(block)
+            except GcodeError as err:
+                if not block.where or err.word.endswith(".ngc"):
+                    raise
+                name, _, at = block.where.partition(": ")
+                raise GcodeError(block.line, name, f"{at}: {err.reason}") from None
             if stop:
                 ended = True
                 break
         if not ended:
-            last = blocks[-1].line if blocks else 0
-            raise GcodeError(last + 1 if blocks else 1, "end of file", "the program ends without M2 or M30")
+            last = self.executor.main.lines[-1].line if self.executor.main.lines else 0
+            raise GcodeError(last + 1, "end of file", "the program ends without M2 or M30")
         self._flush()
         if not self.operations:
             raise GcodeError(1, "program", "moves no axis: nothing to plan")
         return self.operations
 
-    def _collect_subs(self, blocks: list[Block]) -> list[Block]:
-        """O-word subroutines out of the main body (G71 takes them by Q); N numbers indexed."""
-        body: list[Block] = []
-        inside: int | None = None
-        for b in blocks:
-            if b.o_word is not None:
-                number, what = b.o_word
-                if what == "sub":
-                    if inside is not None:
-                        raise GcodeError(b.line, f"O{number}", "a subroutine cannot be defined inside another")
-                    if number in self.subs:
-                        raise GcodeError(b.line, f"O{number}", "defined twice")
-                    inside, self.subs[number] = number, []
-                elif what == "endsub":
-                    if inside != number:
-                        raise GcodeError(b.line, f"O{number}", "ends no subroutine of that number")
-                    inside = None
-                else:
-                    raise GcodeError(b.line, f"O{number}", "calls are not expanded: only G71 uses a subroutine (by Q)")
-                continue
-            if inside is not None:
-                self.subs[inside].append(b)
-            else:
-                if b.number is not None:
-                    self.numbered.setdefault(b.number, len(body))
-                body.append(b)
-        if inside is not None:
-            raise GcodeError(blocks[-1].line, f"O{inside}", "subroutine never ends (no endsub)")
-        return body
+    def _line(self, block: Block) -> bool:
+        """One executed line; True at the program's end (M2, M30)."""
+        self.line = block.number if block.number is not None else block.line
+        self._directives(block)
+        check_groups(block)
+        used: set[str] = set()
+        stop = self._block(block, used)
+        left = [k for k in block.words if k not in used]
+        if left:
+            k = left[0]
+            raise GcodeError(block.line, word_text(k, block.words[k]), "not used by anything in this line")
+        return stop
 
     def _directives(self, block: Block) -> None:
         for name, args in directives(block.comments):
@@ -166,7 +148,7 @@ class Translator:
         return out
 
     # ---- one line, in LinuxCNC's order of execution
-    def _block(self, b: Block, used: set[str], body: list[Block], index: int) -> tuple[bool, int]:
+    def _block(self, b: Block, used: set[str]) -> bool:
         s = self.state
         g = [round(v, 1) for v in b.g]
         m = [round(v, 1) for v in b.m]
@@ -186,9 +168,12 @@ class Translator:
             s.speed = b.words["S"]
         if "T" in b.words:
             used.add("T")
-            s.next_tool = int(b.words["T"])
-            if s.next_tool != b.words["T"] or s.next_tool not in self.ctx.tool_table and s.next_tool != 0:
-                raise GcodeError(b.line, word_text("T", b.words["T"]), "no such tool in the program's tool table")
+            s.next_tool = self._tool_number(b, "T")
+        if 61.0 in m:
+            if "Q" not in b.words:
+                raise GcodeError(b.line, "M61", "needs Q, the tool now in the spindle")
+            used.add("Q")
+            s.tool = self._tool_number(b, "Q")
         if 6.0 in m:
             if s.next_tool is None:
                 raise GcodeError(b.line, "M6", "no tool selected with T")
@@ -197,16 +182,18 @@ class Translator:
             s.spindle_on = True
         if 5.0 in m:
             s.spindle_on = False
+        if 7.0 in m or 8.0 in m:
+            s.mist, s.flood = s.mist or 7.0 in m, s.flood or 8.0 in m
+        if 9.0 in m:
+            s.mist = s.flood = False
         for plane in (17.0, 18.0):
             if plane in g:
                 s.plane = plane
         if 7.0 in g or 8.0 in g:
             s.diameter = 7.0 in g
         if 43.0 in g:
-            if "H" in b.words:
-                used.add("H")
-                if b.words["H"] != s.tool:
-                    raise GcodeError(b.line, word_text("H", b.words["H"]), "only the tool in the spindle's offset is supported")
+            s.length_tool = self._tool_number(b, "H") if "H" in b.words else s.tool
+            used.add("H")
             s.length_offset = True
         if 49.0 in g:
             s.length_offset = False
@@ -224,8 +211,29 @@ class Translator:
             s.retract_initial = 98.0 in g
         if 4.0 in g:
             self._dwell(b, used)
-        skip_to = self._motion(b, g, used, body, index)
-        return (2.0 in m or 30.0 in m), skip_to
+        self._motion(b, g, used)
+        return 2.0 in m or 30.0 in m
+
+    def _tool_number(self, b: Block, letter: str) -> int:
+        """A T, Q (M61) or H (G43) word's tool: a whole number in the tool table (0: none)."""
+        value = b.words[letter]
+        try:
+            n = whole(value, word_text(letter, value))
+        except ValueError:
+            n = -1
+        if n < 0 or n != 0 and n not in self.ctx.tool_table:
+            raise GcodeError(b.line, word_text(letter, value), "no such tool in the tool table (program.tool_table, "
+                                                              "--tools FILE)")
+        return n
+
+    def tool_entry(self, n: int) -> dict:
+        """Tool ``n``'s table entry (mm), empty for tool 0."""
+        return self.ctx.tool_table.get(n, {})
+
+    def applied_length(self) -> float:
+        """The tool length G43 applies now (mm), 0 under G49."""
+        s = self.state
+        return self.tool_entry(s.length_tool).get("length", 0.0) if s.length_offset else 0.0
 
     def _dwell(self, b: Block, used: set[str]) -> None:
         if "P" not in b.words or b.words["P"] < 0.0:
@@ -235,18 +243,19 @@ class Translator:
             self._move(b.line, {"dwell": b.words["P"]})
 
     # ---- motion
-    def _motion(self, b: Block, g: list[float], used: set[str], body: list[Block], index: int) -> int:
+    def _motion(self, b: Block, g: list[float], used: set[str]) -> None:
         s = self.state
         motion = next((c for c in g if c in MOTION), None)
         if motion == 80.0:
             s.motion, self.cycle = None, {}
             if b.has_axes():
                 raise GcodeError(b.line, "G80", "axis words with G80 and no motion to use them")
-            return -1
+            return
         if motion in (71.0, 72.0, 76.0):
             if 4.0 in g:
                 raise GcodeError(b.line, word_text("G", motion), "cannot share a line with G4")
-            return self._one_shot(b, motion, used, body, index)
+            self._one_shot(b, motion, used)
+            return
         if motion is not None:
             if motion in DRILL_CYCLES and s.motion != motion:
                 self.cycle = {"initial_z": s.position.get("z")}
@@ -255,25 +264,24 @@ class Translator:
             if b.has_axes():
                 k = next(k for k in "XYZ" if k in b.words)
                 raise GcodeError(b.line, word_text(k, b.words[k]), "no motion mode in force (give G0 or G1)")
-            return -1
+            return
         if s.motion in DRILL_CYCLES:
             if b.has_axes() or motion is not None:
                 self._hole(b, used)
-            return -1
+            return
         if not b.has_axes():
-            return -1
+            return
         if s.motion in (0.0, 1.0):
             before = dict(s.position)
             target = self._target(b, used)
             if target == before:
-                return -1  # no motion: the tool is there already (our cycles end where LinuxCNC's return to)
+                return  # no motion: the tool is there already (our cycles end where LinuxCNC's return to)
             if s.motion == 0.0:
                 self._move(b.line, {"rapid": target})
             else:
                 self._move(b.line, {"linear": target, "feed": self._feed_mm_min(b.line, "G1")})
         else:
             self._arc(b, used)
-        return -1
 
     def _axis_value(self, b: Block, axis: str) -> float:
         v = self.state.length(b.words[axis.upper()])
@@ -342,9 +350,10 @@ class Translator:
     def _common(self, kind: str) -> dict:
         s = self.state
         setup = self.ctx.setup if s.work_offset == "G54" else self.ctx.work_offsets[s.work_offset]
-        tool = dict(self.ctx.tool_table.get(s.tool, {}))
-        if not s.length_offset:
-            tool.pop("length", None)
+        tool = dict(self.tool_entry(s.tool))
+        tool.pop("length", None)
+        if self.applied_length():
+            tool["length"] = self.applied_length()
         doc = {"schema": "cnc_job/1", "job_id": "", "kind": kind, "machine": self.ctx.machine,
                "tool": tool, "setup": copy.deepcopy(setup), "spindle_rpm": s.speed if s.spindle_on else 0.0}
         return doc
@@ -374,7 +383,7 @@ class Translator:
     def _key(self) -> tuple:
         s = self.state
         vib = None if self.vibration is None else tuple(sorted(self.vibration.items()))
-        return (s.tool, s.length_offset, s.work_offset, s.speed if s.spindle_on else 0.0, vib)
+        return (s.tool, self.applied_length(), s.work_offset, s.speed if s.spindle_on else 0.0, vib)
 
     def _move(self, line: int, entry: dict) -> None:
         self._begin(line, "move", self._key(), []).append(entry)
@@ -386,13 +395,13 @@ class Translator:
     def _hole(self, b: Block, used: set[str]) -> None:
         hole(self, b, used)
 
-    def _one_shot(self, b: Block, motion: float, used: set[str], body: list[Block], index: int) -> int:
+    def _one_shot(self, b: Block, motion: float, used: set[str]) -> None:
         if motion == 76.0:
             g76(self, b, used)
-            return -1
-        if motion == 72.0:
+        elif motion == 72.0:
             raise GcodeError(b.line, "G72", "facing roughing is not supported yet (our roughing turns along Z: G71)")
-        return g71(self, b, used, body, index)
+        else:
+            g71(self, b, used)
 
 
 def translate(text: str, ctx: Context) -> list[Operation]:

@@ -12,13 +12,13 @@ import numpy as np
 
 from cnc_msgs_py.units import mm, to_mm
 
-# What fails a drilled hole on feedback. Deeper than programmed cuts into what lies below the
-# hole: only an encoder's noise and rounding are allowed. Shallower leaves material; the
+from .verdict import OVERCUT_LIMIT
+
+# m: a hole shallower than programmed by more than this fails (deeper: OVERCUT_LIMIT). The
 # planner turns each bottom where the stiffest drive inside the description's tolerance
 # would reach the depth, so drives as described (or softer) stop short by up to ~0.08 mm
 # (32 um on the shipped mill3), and a hole's depth is seldom toleranced tighter than 0.1 mm.
-DEPTH_OVER_LIMIT = 5e-6  # m
-DEPTH_SHORT_LIMIT = 0.1e-3  # m
+DEPTH_SHORT_LIMIT = 0.1e-3
 
 
 def _runs(mask: np.ndarray, t: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -156,7 +156,7 @@ def drilling_failures(result: dict, depths: list[float]) -> list[str]:
     """What fails a drilling cycle judged by analyze_drilling (with surface_z): any sample
     below R with X/Y off its hole, a hole never drilled, a hole deeper than its programmed
     depth (``depths``, m below its surface, in the result's hole order) by more than
-    DEPTH_OVER_LIMIT or shallower by more than DEPTH_SHORT_LIMIT. One phrase per kind of miss."""
+    OVERCUT_LIMIT or shallower by more than DEPTH_SHORT_LIMIT. One phrase per kind of miss."""
     failures = []
     if result["safety_violations"]:
         failures.append(f"X/Y moved while the tip was below R in {result['safety_violations']} feedback samples")
@@ -165,7 +165,7 @@ def drilling_failures(result: dict, depths: list[float]) -> list[str]:
         failures.append(f"{len(missing)} of {len(result['holes'])} holes not drilled, the first at {_at(missing[0])}")
     errors = [(mm(h["depth_mm"]) - depth, h, depth) for h, depth in zip(result["holes"], depths)
               if h.get("depth_mm") is not None]
-    for name, limit, misses in (("deeper", DEPTH_OVER_LIMIT, [e for e in errors if e[0] > DEPTH_OVER_LIMIT]),
+    for name, limit, misses in (("deeper", OVERCUT_LIMIT, [e for e in errors if e[0] > OVERCUT_LIMIT]),
                                 ("shallower", DEPTH_SHORT_LIMIT, [e for e in errors if e[0] < -DEPTH_SHORT_LIMIT])):
         if misses:
             _, hole, depth = max(misses, key=lambda e: abs(e[0]))

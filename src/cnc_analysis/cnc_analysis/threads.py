@@ -32,6 +32,7 @@ import numpy as np
 from cnc_msgs_py.units import deg, mm, to_mm
 
 from .aircut import CHIP_LIMIT_REVS
+from .verdict import OVERCUT_LIMIT
 
 TWO_PI = 2.0 * math.pi
 CUT_TOLERANCE = 0.5e-6  # m: deeper than the envelope by more than this is cutting
@@ -343,14 +344,15 @@ def analyze_thread(
 
 
 def thread_failures(figures: dict, vibrated: bool) -> list[str]:
-    """What fails a thread judged by analyze_thread: its depth short or over by more than
-    DEPTH_TOLERANCE, the tool off its flank line (the helix residual) by more than
+    """What fails a thread judged by analyze_thread: cut deeper than its depth by more than
+    OVERCUT_LIMIT, short of it by more than DEPTH_TOLERANCE (where nothing is over it by
+    that much), the tool off its flank line (the helix residual) by more than
     FLANK_TOLERANCE and, for a vibrated thread, a cutting pass's chip longer than
     CHIP_LIMIT_REVS. One phrase per miss."""
     failures = []
-    if figures["overcut_mm"] > to_mm(DEPTH_TOLERANCE):
+    if figures["overcut_mm"] > to_mm(OVERCUT_LIMIT):
         failures.append(f"cut {figures['overcut_mm']:.4f} mm deeper than the thread's depth "
-                        f"(limit {to_mm(DEPTH_TOLERANCE):g} mm)")
+                        f"(limit {to_mm(OVERCUT_LIMIT):g} mm)")
     if figures["depth_error_mm"] > to_mm(DEPTH_TOLERANCE) and figures["overcut_mm"] <= to_mm(DEPTH_TOLERANCE):
         failures.append(f"depth {figures['depth_error_mm']:.4f} mm short of the thread's depth "
                         f"(limit {to_mm(DEPTH_TOLERANCE):g} mm)")

@@ -8,6 +8,11 @@ analysers that measure the figures (drilling, threads, aircut), one place each.
 """
 from __future__ import annotations
 
+# m: deeper into the part than programmed by more than this fails a verdict, for a hole, a
+# thread or a turned contour alike: the planner leaves material on every drive inside the
+# description's tolerance, so only an encoder's rounding and noise are allowed.
+OVERCUT_LIMIT = 5e-6
+
 
 def verdict(criterion: str, failures: list[str], passed: str) -> dict:
     """The verdict of a section: passed when ``failures`` (one phrase per miss) is empty;

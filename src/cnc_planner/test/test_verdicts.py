@@ -12,8 +12,9 @@ import numpy as np
 import pytest
 
 from cnc_analysis import recording
-from cnc_analysis.drilling import DEPTH_OVER_LIMIT, DEPTH_SHORT_LIMIT
+from cnc_analysis.drilling import DEPTH_SHORT_LIMIT
 from cnc_analysis.recording import Run
+from cnc_analysis.verdict import OVERCUT_LIMIT
 from cnc_msgs_py.job import load_job_file, parse_job
 from cnc_msgs_py.machine import Machine, load_machine
 from cnc_planner.cli import VERDICT_FAILED, analyze_main, failed_verdicts, summary
@@ -102,7 +103,7 @@ def test_a_hole_too_deep_or_too_shallow_fails_the_drill_verdict():
     assert deep["passed"] is False
     assert deep["says"] == ("5 of 5 holes deeper than programmed by more than 0.005 mm, the worst 5.0129 mm deep "
                             "for 5 mm at X 0 Y 0 mm")
-    assert f"+{DEPTH_OVER_LIMIT * 1e3:g}/-{DEPTH_SHORT_LIMIT * 1e3:g} mm" in deep["criterion"]
+    assert f"+{OVERCUT_LIMIT * 1e3:g}/-{DEPTH_SHORT_LIMIT * 1e3:g} mm" in deep["criterion"]
     run.feedback[:, z] = np.maximum(nominal, -4.5e-3)  # every hole stops 0.5 mm short
     short = build_report(run, machine)["drill"]["verdict"]
     assert short["passed"] is False and "5 of 5 holes shallower than programmed by more than 0.1 mm" in short["says"]
@@ -112,12 +113,18 @@ def test_a_thread_cut_too_deep_or_off_its_flank_fails_the_thread_verdict():
     machine, run = predicted("thread_m12")
     x, z = run.column("x"), run.column("z")
     nominal = run.feedback.copy()
-    run.feedback[:, x] = nominal[:, x] - 0.03e-3  # the tool 30 um further into the external thread
+    # The tool 10 um further into the external thread: within the analyser's full_depth
+    # (0.02 mm either way), but an overcut, which the verdict holds to OVERCUT_LIMIT.
+    run.feedback[:, x] = nominal[:, x] - 0.01e-3
     over = build_report(run, machine)
-    assert over["thread"]["overcut_mm"] == pytest.approx(0.03, abs=1e-3)
-    assert over["thread"]["verdict"]["passed"] is False and "deeper than the thread's depth" in \
-        over["thread"]["verdict"]["says"]
+    assert over["thread"]["overcut_mm"] == pytest.approx(0.01, abs=1e-3) and over["thread"]["full_depth"]
+    assert over["thread"]["verdict"]["passed"] is False
+    assert over["thread"]["verdict"]["says"].startswith("cut 0.01")
+    assert "deeper than the thread's depth (limit 0.005 mm)" in over["thread"]["verdict"]["says"]
     assert failed_verdicts(over) == ["thread"]
+    run.feedback[:, x] = nominal[:, x] + 0.03e-3  # 30 um short
+    short = build_report(run, machine)["thread"]["verdict"]
+    assert short["passed"] is False and short["says"].startswith("depth 0.03"), short
     # The last pass 30 um further along the axis than the others: off the flank line they cut
     # (a shift of every pass alike would only move the thread's start, and is not judged).
     last = build_report(dataclasses.replace(run, feedback=nominal), machine)["thread"]["passes"][-1]

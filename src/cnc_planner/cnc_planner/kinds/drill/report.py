@@ -15,10 +15,9 @@ import numpy as np
 from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_msgs_py.units import to_mm
 
-from cnc_analysis.drilling import DEPTH_OVER_LIMIT, DEPTH_SHORT_LIMIT, analyze_drilling, drilling_failures, \
-    obstacle_clearance
+from cnc_analysis.drilling import DEPTH_SHORT_LIMIT, analyze_drilling, drilling_failures, obstacle_clearance
 from cnc_analysis.recording import Run
-from cnc_analysis.verdict import verdict
+from cnc_analysis.verdict import OVERCUT_LIMIT, verdict
 
 from cnc_planner import planning
 from cnc_planner.kinds.drill.block import drill_cycle
@@ -97,7 +96,7 @@ def drill_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.n
 
 def criterion(job: SimpleNamespace) -> str:
     """What the drill section's verdict holds the feedback to, with its limits."""
-    rules = [f"on feedback: no X/Y motion while the tip is below R; every hole within +{to_mm(DEPTH_OVER_LIMIT):g}/"
+    rules = [f"on feedback: no X/Y motion while the tip is below R; every hole within +{to_mm(OVERCUT_LIMIT):g}/"
              f"-{to_mm(DEPTH_SHORT_LIMIT):g} mm of its depth"]
     if job.drill.peck is not None:
         rules.append("every peck's fast re-entry above the previous bottom")

@@ -6,7 +6,7 @@ from cnc_planner.page_format import mm
 
 
 def cards(turn: dict) -> list[Card]:
-    """The section's verdict (a gouge into the part, kinds.turn.report.GOUGE_LIMIT) and its air moves."""
+    """The section's verdict (a gouge into the part, kinds.turn.report) and its air moves."""
     gouge = turn.get("max_gouge_part_mm", 0.0)
     left = turn.get("stock_left_mm")
     passed = turn["verdict"]["passed"]

@@ -1,6 +1,6 @@
 """The turn section of report.json: the roughing plan's figures beside a naive one's, and
 how far the tip went into the allowances and the part on feedback; its verdict fails a
-gouge into the final part on feedback (deeper than GOUGE_LIMIT)."""
+gouge into the final part on feedback (deeper than cnc_analysis.verdict.OVERCUT_LIMIT)."""
 from __future__ import annotations
 
 from types import SimpleNamespace
@@ -12,15 +12,11 @@ from cnc_msgs_py.units import to_mm
 
 from cnc_analysis import summary
 from cnc_analysis.recording import Run
-from cnc_analysis.verdict import verdict
+from cnc_analysis.verdict import OVERCUT_LIMIT, verdict
 
 from cnc_planner.kinds.turn.judge import max_gouge
 from cnc_planner.kinds.turn.roughing import plan_naive, plan_roughing
 from cnc_planner.kinematics import Kinematics
-
-# m: the tip on feedback inside the final profile by more than this is a gouge (the roughing
-# passes stop at the finishing allowances; only an encoder's rounding and noise are allowed)
-GOUGE_LIMIT = 5e-6
 
 
 def turn_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray) -> dict:
@@ -51,8 +47,8 @@ def turn_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.nd
         "max_gouge_commanded_mm": to_mm(max_gouge(commanded, args["profile"], t.finish_allowance,
                                                   t.finish_allowance_z)),
         "cycle_time_s": summary.cycle_time(run, ("x", "z")),
-        "verdict": verdict(f"on feedback: the tip no deeper than {to_mm(GOUGE_LIMIT):g} mm into the final profile",
+        "verdict": verdict(f"on feedback: the tip no deeper than {to_mm(OVERCUT_LIMIT):g} mm into the final profile",
                            [f"gouge: the tip went {to_mm(gouge):.4f} mm into the final profile"]
-                           if gouge > GOUGE_LIMIT else [],
+                           if gouge > OVERCUT_LIMIT else [],
                            f"the tip stayed out of the final profile ({to_mm(gouge):.4f} mm into it) on feedback"),
     }

@@ -2,20 +2,26 @@
 and exits 0, ``--version`` prints its package's version, an unknown argument is an error
 (exit 2), and none of them starts a node: a node that started would spin until killed, so
 each run must end by itself within the timeout, and the nodes' start-up lines (logged by
-rclpy at INFO) must not appear."""
+rclpy at INFO) must not appear. Both answer before the heavy imports (issue 43): what a
+script imported is read from Python's own import log, not timed (bench/startup.py times them)."""
 from __future__ import annotations
 
+import os
+import subprocess
 from importlib.metadata import entry_points, version
 
 import pytest
 
-from support import cnc
+from support import BIN, cnc
 
 PACKAGES = ("cnc_msgs_py", "cnc_analysis", "cnc_planner", "cnc_servo_bridge")
 SCRIPTS = sorted((ep.name, ep.dist.name) for ep in entry_points(group="console_scripts")
                  if ep.dist is not None and ep.dist.name in PACKAGES)
 NODES = {"planner", "cnc-planner", "bridge", "cnc-bridge"}
 ENDS_BY_ITSELF_S = 60  # generous: the bound only catches a node spinning instead of answering
+HEAVY = {"rclpy", "numpy", "yaml", "matplotlib", "jinja2", "rosbags", "cnc_analysis", "cnc_planner.planning"}
+# the bridge's entry point is its node's module, which imports rclpy and numpy at its top
+IMPORTED_BY_ITS_MODULE = {"bridge": {"rclpy", "numpy", "yaml"}, "cnc-bridge": {"rclpy", "numpy", "yaml"}}
 
 
 def test_every_package_script_is_found():
@@ -40,6 +46,18 @@ def test_version_prints_the_package_version(script, package):
     result = cnc(script, "--version", timeout=ENDS_BY_ITSELF_S)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == f"{script} {version(package)}"
+
+
+@pytest.mark.parametrize("flag", ["--help", "--version"])
+@pytest.mark.parametrize("script, package", SCRIPTS)
+def test_help_and_version_answer_before_the_heavy_imports(script, package, flag):
+    result = subprocess.run([str(BIN / script), flag], capture_output=True, text=True, timeout=ENDS_BY_ITSELF_S,
+                            env={**os.environ, "PYTHONPROFILEIMPORTTIME": "1"})
+    assert result.returncode == 0, result.stderr[-2000:]
+    imported = {line.rsplit("|", 1)[-1].strip() for line in result.stderr.splitlines()
+                if line.startswith("import time:")}
+    assert imported, "no import log: PYTHONPROFILEIMPORTTIME was not honoured"
+    assert not (HEAVY - IMPORTED_BY_ITS_MODULE.get(script, set())) & imported
 
 
 @pytest.mark.parametrize("script", sorted(NODES))

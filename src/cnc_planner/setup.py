@@ -44,8 +44,8 @@ setup(
     license="Apache-2.0",
     tests_require=["pytest"],
     entry_points={"console_scripts": [
-        "planner = cnc_planner.planner_node:main",
-        "cnc-planner = cnc_planner.planner_node:main",
+        "planner = cnc_planner.planner_main:main",
+        "cnc-planner = cnc_planner.planner_main:main",
         "cnc-run = cnc_planner.cli:run_main",
         "cnc-plan = cnc_planner.cli:plan_main",
         "cnc-analyze = cnc_planner.cli:analyze_main",

@@ -5,15 +5,18 @@ range and when a change takes effect. rclpy itself refuses a set outside the ran
 (``SetParametersResult(successful=False, reason=...)``) and any set of a read-only
 parameter; a managed node refuses changes to ``at_configure`` parameters unless it is
 unconfigured. A value out of range at start-up stops the node with one line naming it.
+
+The tables are read without rclpy too (a node's --help lists them: cnc_msgs_py.tool), so
+rclpy is imported where a parameter meets a node.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
-from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException, ParameterUninitializedException
-from rclpy.node import Node
+if TYPE_CHECKING:
+    from rcl_interfaces.msg import ParameterDescriptor
+    from rclpy.node import Node
 
 
 @dataclass(frozen=True)
@@ -28,6 +31,8 @@ class Param:
     at_configure: bool = False  # a managed node reads it at configure: set it while unconfigured
 
     def descriptor(self) -> ParameterDescriptor:
+        from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+
         unit = f" [{self.unit}]" if self.unit else ""
         when = ("fixed at start-up" if self.read_only else
                 "read at configure: may be set only while the node is unconfigured" if self.at_configure else
@@ -50,6 +55,8 @@ def declare(node: Node, table: dict[str, Param]) -> None:
         ValueError: a value given at start-up (``-p``, a params file) is out of range
             or of the wrong type; the message names the parameter.
     """
+    from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+
     for name, param in table.items():
         try:
             node.declare_parameter(name, param.default, param.descriptor())
@@ -59,6 +66,8 @@ def declare(node: Node, table: dict[str, Param]) -> None:
 
 def value(node: Node, name: str) -> Any:
     """A declared parameter's value; None if it was declared without one and never set."""
+    from rclpy.exceptions import ParameterUninitializedException
+
     try:
         return node.get_parameter(name).value
     except ParameterUninitializedException:

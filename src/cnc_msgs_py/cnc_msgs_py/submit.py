@@ -12,13 +12,8 @@ import sys
 from typing import Any, Callable
 
 from . import topics
-from .client import CncClient, CncClientError
-from .discovery import dds_environment
-from .gcode.document import job_document
-from .job import load_job
-from .progress import Progress
-from .schema import JobError
 from .tool import tool_parser
+
 
 def main(argv: list[str] | None = None) -> int:
     """cnc-submit JOB: send a job to running CNC nodes and wait for its final status."""
@@ -34,6 +29,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cancel-after", type=float, default=None, metavar="S",
                         help="cancel the job S seconds (wall clock) after sending it")
     args = parser.parse_args(argv)
+    from .client import CncClient, CncClientError  # past the arguments: --help answers without them
+    from .discovery import dds_environment
+    from .gcode.document import job_document
+    from .job import load_job
+    from .progress import Progress
+    from .schema import JobError
+
     for name in ("timeout", "cancel_after"):
         value = getattr(args, name)
         if value is not None and not value > 0:

@@ -7,6 +7,9 @@ machine, --out); 3 the run itself failed (nodes, timeout); 4 the job ran to its 
 verdict of the report failed (a section's ``verdict.passed`` is false): a miss is never
 reported as a success. cnc-analyze exits 4 on a failed verdict too. The report's ``drives``
 comparison is advice (which axis is not its description), printed but never an exit code.
+
+Each tool parses its arguments before importing what its work needs (the planner, rclpy, the
+judge, matplotlib, jinja2): --help and --version answer in a few tens of milliseconds.
 """
 from __future__ import annotations
 
@@ -16,20 +19,8 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
-from cnc_msgs_py.gcode.document import job_document
-from cnc_msgs_py.heap import keep_freed_memory
-from cnc_msgs_py.job import job_id_of, parse_job
-from cnc_msgs_py.machine import MachineError, load_machine
-from cnc_msgs_py.plant import load_plant
-from cnc_msgs_py.progress import Progress
-from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.tool import tool_parser
 from cnc_msgs_py.topics import NAMESPACE
-
-from cnc_planner.planning import plan_job
-from cnc_planner.report_page import write_report_page
 
 
 def _fail(tool: str, message: str, code: int = 2) -> int:
@@ -58,6 +49,14 @@ def run_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--plant", type=Path, help="plant file: the bridge emulates drives that differ from the "
                                                    "description (docs/machines.md); the planner never reads it")
     args = parser.parse_args(argv)
+    from cnc_msgs_py.gcode.document import job_document
+    from cnc_msgs_py.job import job_id_of
+    from cnc_msgs_py.machine import MachineError, load_machine
+    from cnc_msgs_py.plant import load_plant
+    from cnc_msgs_py.schema import JobError
+
+    from cnc_planner.report_page import write_report_page
+
     out = args.out or Path("runs") / time.strftime("%Y%m%d-%H%M%S")
     if (out / "bag").exists():
         return _fail("cnc-run", f"--out: {out / 'bag'} exists already; choose a new directory")
@@ -73,8 +72,10 @@ def run_main(argv: list[str] | None = None) -> int:
         _write_json(out / "report.json", report)
         write_report_page(report, [], out / "report.html", job=doc if isinstance(doc, dict) else None)
         return _fail("cnc-run", f"rejected: {reason}")
+    from cnc_msgs_py.progress import Progress
+
     from cnc_planner.plots import write_plots
-    from cnc_planner.report import build_report  # rclpy-free, but only needed past this point
+    from cnc_planner.report import build_report
     from cnc_planner.runner import RunError, run_job
     from cnc_analysis.recording import read_run
 
@@ -165,6 +166,16 @@ def plan_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--period", type=float, default=0.001, help="interpolation period (s)")
     args = parser.parse_args(argv)
+    import numpy as np
+
+    from cnc_msgs_py.gcode.document import job_document
+    from cnc_msgs_py.heap import keep_freed_memory
+    from cnc_msgs_py.job import parse_job
+    from cnc_msgs_py.machine import MachineError, load_machine
+    from cnc_msgs_py.schema import JobError
+
+    from cnc_planner.planning import plan_job
+
     keep_freed_memory()  # as the planner node does: the plan's arrays reuse freed memory
     try:
         job = parse_job(job_document(args.job, args.machine))

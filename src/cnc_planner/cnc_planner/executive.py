@@ -23,33 +23,13 @@ from cnc_servo_bridge.drive import warm_up
 from cnc_planner.kinds import progress_count
 from cnc_planner.lookahead import JobPlan
 from cnc_planner.segments import plan_segments, segment_count
+from cnc_planner.settings import Settings
 from cnc_planner.streaming import Chunk, SetpointStream
 from cnc_planner.motion.timeline import Event
 
 START_MATCH = 1e-6  # m: a plan made from another position than the axes hold is redone
 REST_SPEED = 1e-4  # m/s or rad/s: feedback this slow counts as standing still (a settled
 # position loop dithers by an encoder count, a few um/s)
-
-
-@dataclass
-class Settings:
-    period_ns: int = 1_000_000  # interpolation period
-    chunk_points: int = 100
-    lookahead_ns: int = 300_000_000  # how far setpoints run ahead of the feedback; also
-    # the longest a cancel waits: a stop begins where the setpoints sent so far end
-    planning_lookahead_ns: int = 2_000_000_000  # the same while a goal (or the running job's
-    # next segment) is being planned beside the stream: planning holds the GIL, and under CPU load the stream's thread then
-    # waits for it each time it asks (0.3 s of setpoints ran dry in real time; 1 s did in 3 of
-    # 150 make stress runs, where a sleeping thread of an idle process woke up to 0.4 s late)
-    start_delay_ns: int = 600_000_000  # from the feedback that starts a job to its first setpoint:
-    # the idle bridge's time runs on meanwhile, so this must cover a tick slowed by a loaded CPU
-    status_period_ns: int = 500_000_000  # progress updates on job_status
-    min_lead_ns: int = 500_000_000  # a job's first chunk reaching the bridge's clock with less
-    # lead than this (a start delayed by planning, a loaded CPU or DDS) is re-timed, not sent stale;
-    # at 0.1 s a first chunk still arrived 42 ms late beside two busy processes (load average 9),
-    # at 0.3 s 50 and 67 ms late in a fresh-clone suite (a bridge just restarted; three machines
-    # starting at once on 2 CPUs): in simulation the planner reads the bridge's clock from
-    # /clock, itself late under load
 
 
 @dataclass

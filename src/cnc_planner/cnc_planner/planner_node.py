@@ -21,36 +21,13 @@ from trajectory_msgs.msg import JointTrajectory
 
 from cnc_msgs_py import qos, topics, trajectory_bytes
 from cnc_msgs_py.machine import load_machine
-from cnc_msgs_py.node import run_node
-from cnc_msgs_py.parameters import Param, declare, value
+from cnc_msgs_py.parameters import declare, value
 from cnc_msgs_py.status import Status, decode_cancel
 from cnc_msgs_py.units import NS
 
 from cnc_planner.executive import Executive, Output, Settings
 from cnc_planner.goal_ledger import GoalLedger
-
-
-PARAMETERS = {
-    "machine": Param("mill3", "machine description config/machines/<name>.yaml (or a path), the one "
-                              "the bridge drives", read_only=True),
-    # the defaults are the executive's Settings: written once
-    "interpolation_period": Param(Settings.period_ns / NS, "time between setpoints (the bridge's servo_period)",
-                                  "s", (1e-4, 0.01), read_only=True),
-    "chunk_points": Param(Settings.chunk_points, "setpoints per joint_trajectory chunk", "points", (1, 10000),
-                          read_only=True),
-    "lookahead": Param(Settings.lookahead_ns / NS, "setpoints kept ahead of the feedback, and the longest a "
-                                                   "cancel waits", "s", (0.05, 5.0)),
-    "planning_lookahead": Param(Settings.planning_lookahead_ns / NS, "setpoints kept ahead of the feedback while "
-                                "a goal is planned beside the running job (planning slows the stream's thread), "
-                                "and the longest a cancel then waits", "s", (0.05, 5.0)),
-    "feedback_period": Param(0.02, "wall time between reads of the latest joint_states (progress, the stream's "
-                                   "top-up, the end of the job, the feedback watchdog); the bridge publishes "
-                                   "them at 1 kHz, and each is only kept until the next arrives", "s",
-                             (0.001, 0.1),
-                             read_only=True),
-    "feedback_timeout": Param(2.0, "wall time without joint_states before a running job aborts", "s",
-                              (0.1, 60.0)),
-}
+from cnc_planner.planner_main import PARAMETERS, main
 
 
 def ignore(_msg: object) -> None:
@@ -289,11 +266,5 @@ class PlannerNode(Node):
             self.publish(Output(statuses=self.executive.abort(reason, self.now_ns(), stop=False)))
 
 
-def main(args: list[str] | None = None) -> int:
-    return run_node(PlannerNode, "cnc_planner", args, package="cnc_planner", parameters=PARAMETERS,
-                    description="The CNC planner node: job goals in (job_goal), jerk-limited joint setpoints out "
-                                "(joint_trajectory), statuses and phase marks back (job_status, job_events).")
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+if __name__ == "__main__":  # python -m cnc_planner.planner_node (cnc-run, the tests): the class is here
+    sys.exit(main(make=PlannerNode))

@@ -24,7 +24,7 @@ def loaded_after(module: str) -> list[str]:
 @pytest.mark.parametrize("module", [
     "cnc_planner.planning", "cnc_planner.kinds",
     "cnc_planner.planner_node",  # the node (rclpy with it): what it plans with, not what reports
-    "cnc_planner.executive",
+    "cnc_planner.executive", "cnc_planner.cli",  # cnc-plan's own module: its tools import their work when run
 ])
 def test_planning_loads_no_judge_plots_or_page(module):
     assert loaded_after(module) == []

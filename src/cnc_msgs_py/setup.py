@@ -21,7 +21,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
-        (f"share/{PACKAGE}/config/machines", config("machines/*.yaml")),
+        (f"share/{PACKAGE}/config/machines", config("machines/*.yaml") + config("machines/*.tbl")),
         (f"share/{PACKAGE}/config", config("work_offsets.yaml")),
     ],
     install_requires=["setuptools", "tqdm>=4.66", "rosbags>=0.11"],

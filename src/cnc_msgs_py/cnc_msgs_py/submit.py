@@ -24,6 +24,7 @@ def main(argv: list[str] | None = None) -> int:
                "JSON) is printed on stdout; progress goes to stderr.")
     parser.add_argument("job", help="job document: a YAML or JSON file, or a G-code program (.ngc)")
     parser.add_argument("--machine", help="the machine a program (or job) runs on when it names none")
+    parser.add_argument("--tools", help="a LinuxCNC tool.tbl for a G-code program (default: the machine's own)")
     parser.add_argument("--namespace", default=topics.NAMESPACE, help="the nodes' namespace (default /cnc)")
     parser.add_argument("--timeout", type=float, default=600.0, help="wall-clock limit for the job (s)")
     parser.add_argument("--cancel-after", type=float, default=None, metavar="S",
@@ -41,7 +42,7 @@ def main(argv: list[str] | None = None) -> int:
         if value is not None and not value > 0:
             return _fail(f"--{name.replace('_', '-')}: must be > 0 s, got {value:g}")
     try:
-        doc = load_job(job_document(args.job, args.machine))
+        doc = load_job(job_document(args.job, args.machine, args.tools))
     except JobError as err:
         return _fail(f"{args.job}: {err}" if err.field else str(err))
     # The user's DDS settings as they are (a discovery server on a shop floor); without

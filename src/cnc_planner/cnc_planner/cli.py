@@ -43,6 +43,7 @@ def run_main(argv: list[str] | None = None) -> int:
     parser = tool_parser("cnc-run", "cnc_planner", description=run_main.__doc__)
     parser.add_argument("job", help="job document (YAML or JSON) or G-code program (.ngc)")
     parser.add_argument("--machine", help="the machine a program (or job) runs on when it names none")
+    parser.add_argument("--tools", help="a LinuxCNC tool.tbl for a G-code program (default: the machine's own)")
     parser.add_argument("--out", type=Path, help="output directory (default runs/<timestamp>)")
     parser.add_argument("--timeout", type=float, default=900.0, help="wall-clock limit (s)")
     parser.add_argument("--namespace", default=NAMESPACE, help=f"the machine's namespace (default {NAMESPACE})")
@@ -61,7 +62,7 @@ def run_main(argv: list[str] | None = None) -> int:
     if (out / "bag").exists():
         return _fail("cnc-run", f"--out: {out / 'bag'} exists already; choose a new directory")
     try:
-        doc = job_document(args.job, args.machine)
+        doc = job_document(args.job, args.machine, args.tools)
         machine = load_machine(doc.get("machine") if isinstance(doc.get("machine"), str) else "")
         plant = str(args.plant.resolve()) if args.plant else ""
         load_plant(plant, machine)  # checked here: a bad plant file is bad input, not a failed run
@@ -163,6 +164,7 @@ def plan_main(argv: list[str] | None = None) -> int:
     parser = tool_parser("cnc-plan", "cnc_planner", description=plan_main.__doc__)
     parser.add_argument("job", help="job document (YAML or JSON) or G-code program (.ngc)")
     parser.add_argument("--machine", help="the machine a program (or job) runs on when it names none")
+    parser.add_argument("--tools", help="a LinuxCNC tool.tbl for a G-code program (default: the machine's own)")
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--period", type=float, default=0.001, help="interpolation period (s)")
     args = parser.parse_args(argv)
@@ -178,7 +180,7 @@ def plan_main(argv: list[str] | None = None) -> int:
 
     keep_freed_memory()  # as the planner node does: the plan's arrays reuse freed memory
     try:
-        job = parse_job(job_document(args.job, args.machine))
+        job = parse_job(job_document(args.job, args.machine, args.tools))
         machine = load_machine(job.machine)
         plan = plan_job(job, machine)
     except (JobError, MachineError) as err:

@@ -7,7 +7,9 @@ other kinds' jobs. The block::
       work_offsets: {G55: {origin: [100, 0, 0]}}          # G55..G59; G54 is the job's setup
       stock: [[0, 20], [-40, 20]]         # G71's real stock, [z, radius] as turn.stock
       start: {x: 7, z: 4}                 # where the tool stands when the program begins
+      subroutines: [{name: peck, gcode: "o<peck> sub ... o<peck> endsub"}]   # <name>.ngc files
 
+Without ``tool_table`` the machine's own (``config/machines/<machine>.tbl``) holds the tools.
 The program is translated and every operation validated as its kind's job when the document
 is parsed, so a bad program is refused, by line and word, before anything moves.
 """
@@ -31,29 +33,33 @@ PROGRAM = Obj({
     "work_offsets": Obj({f"G{n}": Obj(SETUP.fields, default=None) for n in range(55, 60)}, default=None),
     "stock": List(OUTLINE.item, min_len=2, max_len=MAX_LIST, default=None),  # as turn.stock
     "start": Obj({k: Num("mm", default=None) for k in ("x", "y", "z")}, default=None),
+    "subroutines": List(Obj({"name": Str(pattern=r"[A-Za-z0-9_.-]{1,64}"), "gcode": Str()}), max_len=1000, default=None),
 }, default=None)
 
 
 def check(job: SimpleNamespace) -> None:
     """Everything is checked on the raw document (check_given): the translation needs mm."""
-    if len(job.program.gcode) > MAX_PROGRAM_CHARS:
-        raise JobError("program.gcode", f"longer than {MAX_PROGRAM_CHARS} characters")
+    if len(job.program.gcode) + sum(len(s.gcode) for s in job.program.subroutines or []) > MAX_PROGRAM_CHARS:
+        raise JobError("program.gcode", f"longer than {MAX_PROGRAM_CHARS} characters (with its subroutines)")
 
 
 def translate_program(doc: dict, job: SimpleNamespace) -> None:
     """The program's operations in ``job.program.operations``: a list of (line, job in SI,
     its document in mm); any error is ``line N: <word>: <reason>``."""
     from ..gcode import Context, GcodeError, translate
+    from ..gcode.tools import machine_tool_table
     from ..job import parse_job  # the job schema holds this module: imported when used
     block = doc["program"]
     table = {}
-    for entry in block.get("tool_table") or []:
+    tools = block.get("tool_table")
+    for entry in (machine_tool_table(job.machine) or []) if tools is None else tools:
         if entry["tool"] in table:
             raise JobError("program.tool_table", f"tool {entry['tool']} given twice")
         table[entry["tool"]] = {k: v for k, v in entry.items() if k != "tool"}
     ctx = Context(job_id=job.job_id, machine=job.machine, setup=doc.get("setup") or {}, tool_table=table,
                   work_offsets={k: v for k, v in (block.get("work_offsets") or {}).items() if v is not None},
-                  stock=block.get("stock"), start={k: v for k, v in (block.get("start") or {}).items() if v is not None})
+                  stock=block.get("stock"), start={k: v for k, v in (block.get("start") or {}).items() if v is not None},
+                  subroutines={s["name"].lower(): s["gcode"] for s in block.get("subroutines") or []})
     operations = []
     for op in translate(block["gcode"], ctx):
         try:

@@ -381,3 +381,31 @@ def test_cancel_mid_program_ends_in_a_controlled_stop(tmp_path):
     # The program did not run to its end: no job_end was published (where the stop lands
     # depends on how late the cancel arrives, which a loaded host changes; that it stops does not).
     assert not [e for e in run.events if e.get("job_id") == doc["job_id"] and e["name"] == "job_end"]
+
+
+G71_AT_THE_CORNER = """G21 G18 G7 G90 G95
+M3 S1000
+F0.2
+G0 X40 Z2
+{cycle}
+G0 X50 Z10
+M2
+"""
+CONTOUR = ["G1 X20 Z0", "G1 Z-10", "G1 X30 Z-15", "G1 Z-30", "G1 X40"]
+
+
+def test_g71_started_at_the_stock_corner_plans_in_both_forms():
+    """LinuxCNC's usual G71 starts on the corner of the stock it assumes (X40 Z2 in diameter
+    mode): the roughing starts R above it, straight out, instead of being refused."""
+    sub = G71_AT_THE_CORNER.format(cycle="G71 Q100 X40 Z2 D0.2 I1.0 R0.5\no100 sub\n" + "\n".join(CONTOUR)
+                                   + "\no100 endsub")
+    pq = G71_AT_THE_CORNER.format(cycle="G71 P10 Q20 X40 Z2 D0.2 I1.0 R0.5\nN10 " + "\n".join(CONTOUR[:-1])
+                                  + "\nN20 " + CONTOUR[-1])
+    turns = []
+    for text in (sub, pq):
+        job = parse_job(program_doc(text, "lathe"))
+        doc = next(d for _, op, d in job.program.operations if op.kind == "turn")
+        turns.append(doc["turn"])
+        assert plan_job(job, load_machine("lathe")).duration > 0.0
+    assert turns[0] == turns[1]
+    assert turns[0]["origin"] == [2.0, 20.7] and turns[0]["stock"] == [[2.0, 20.0], [-30.0, 20.0]]

@@ -150,7 +150,31 @@ def g71(tr: "Translator", b: Block, used: set[str]) -> None:
     else:
         z_min = min((p[0] if isinstance(p, list) else p["arc_to"][0]) for p in profile)
         stock = [[sz, sx], [z_min, sx]]
+    origin = outside(stock, profile, allowance, clearance, (z0, x0))
     turn = {"stock": stock, "profile": profile, "depth_of_cut": depth, "clearance": clearance, "feed": feed,
-            "origin": [z0, x0], "finish_allowance": allowance, "finishing_pass": True}
+            "origin": list(origin), "finish_allowance": allowance, "finishing_pass": True}
     tr._begin(b.line, "turn", ("G71", b.line), turn)
     tr._flush()
+    s.position["z"], s.position["x"] = origin  # our cycle ends back at its origin
+
+
+def _radius(p: list | dict) -> float:
+    """The largest radius a profile element reaches (an arc's center radius + its radius
+    bounds its bulge)."""
+    if isinstance(p, list):
+        return p[1]
+    return max(p["arc_to"][1], p["center"][1] + abs(p["radius"]))
+
+
+def outside(stock: list, profile: list, allowance: float, clearance: float, at: tuple[float, float]) -> tuple[float, float]:
+    """Where the roughing starts and ends: the tool's (z, radius) when it stands clear of the
+    stock and the finished profile, else R (the clearance) above them, straight out from
+    where it stands. LinuxCNC's G71 may start on the stock's corner (``G0 X40 Z2`` then
+    ``G71 ... X40 Z2``): its first move retracts by R, and so does ours."""
+    z, x = at
+    top = max(max(p[1] for p in stock if isinstance(p, list)), max(_radius(p) for p in profile) + allowance)
+    first = profile[0][0] if isinstance(profile[0], list) else profile[0]["arc_to"][0]
+    right = max(next(p[0] for p in stock if isinstance(p, list)), first)
+    if x > top or z > right:
+        return z, x
+    return z, top + clearance

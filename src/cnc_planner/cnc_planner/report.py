@@ -16,6 +16,7 @@ import numpy as np
 
 from cnc_msgs_py.job import parse_job
 from cnc_msgs_py.machine import SPINDLE, Machine, MachineError, load_machine
+from cnc_msgs_py.plant import Plant
 from cnc_msgs_py.schema import JobError
 
 from cnc_analysis import summary
@@ -97,12 +98,12 @@ def job_window(run: Run, job_id: str) -> np.ndarray:
     return run.feedback_t >= t0 - 1e-9
 
 
-def predicted_run(doc: dict, plan: Plan, machine: Machine, period: float = 1e-3) -> Run:
+def predicted_run(doc: dict, plan: Plan, machine: Machine, period: float = 1e-3, plant: Plant | None = None) -> Run:
     """A run as the bridge would record it, predicted offline: the plan's setpoints, the
-    drive model's feedback to them and the plan's events, so that build_report judges a
-    prediction with the very code that judges recordings. A prediction, not a recording:
-    no DDS, no timing, no lost samples."""
-    t, feedback = simulated_feedback(plan, machine, period)
+    drive model's feedback to them (on ``plant``'s drives where given) and the plan's
+    events, so that build_report judges a prediction with the very code that judges
+    recordings. A prediction, not a recording: no DDS, no timing, no lost samples."""
+    t, feedback = simulated_feedback(plan, machine, period, plant)
     p, v, a = plan.sample(t)
     job_id = str(doc.get("job_id", ""))
     final = {"job_id": job_id, "state": "succeeded", "reason": "", "cycle_time_s": plan.duration}

@@ -8,7 +8,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 BENCHES = ("drill_cycle.py", "deep_holes.py", "vibration_speed.py", "turning_air.py", "thread_chips.py",
-           "thread_bound.py", "path_5ax.py", "load.py", "memory.py", "plants.py")
+           "thread_bound.py", "path_5ax.py", "load.py", "memory.py", "plants.py", "startup.py")
 
 
 def main() -> int:

@@ -3,6 +3,7 @@ recorded, and a report that the recording alone reproduces."""
 from __future__ import annotations
 
 import json
+import zipfile
 
 import numpy as np
 import pytest
@@ -158,3 +159,15 @@ def test_cnc_plan_offline_writes_setpoints(tmp_path):
     assert summary["joints"] == ["x", "y", "z", "spindle"]
     assert len(data["t"]) == summary["setpoints"]
     assert data["x"][-1] == pytest.approx(0.0) and data["z"][-1] == pytest.approx(0.010)
+
+
+def test_cnc_plan_stores_setpoints_unless_asked_to_compress(tmp_path):
+    """Stored by default (the fastest write); --compress deflates the very same arrays."""
+    for option, out in (((), tmp_path / "stored"), (("--compress",), tmp_path / "deflated")):
+        assert cnc("cnc-plan", JOB, "--out", out, *option).returncode == 0
+    with zipfile.ZipFile(tmp_path / "stored" / "setpoints.npz") as stored, \
+            zipfile.ZipFile(tmp_path / "deflated" / "setpoints.npz") as deflated:
+        assert {i.compress_type for i in stored.infolist()} == {zipfile.ZIP_STORED}
+        assert {i.compress_type for i in deflated.infolist()} == {zipfile.ZIP_DEFLATED}
+    with np.load(tmp_path / "stored" / "setpoints.npz") as a, np.load(tmp_path / "deflated" / "setpoints.npz") as b:
+        assert sorted(a.files) == sorted(b.files) and all(np.array_equal(a[k], b[k]) for k in a.files)

@@ -24,6 +24,7 @@ from .kinds.kind import MAX_LIST  # noqa: F401  public: the longest list (holes,
 from .kinds.kind import THREAD_ONLY_VIBRATION, KindSchema
 from .schema import JobError, List, Num, Obj, Str, given, show
 from .units import rpm
+from .yaml_text import load_yaml
 
 SCHEMA = "cnc_job/1"
 KINDS = tuple(KIND_SCHEMAS)
@@ -186,7 +187,7 @@ def load_job_file(path: str | Path) -> dict:
     except OSError as err:
         raise JobError("", f"cannot read job file {path}: {err.strerror}") from err
     try:
-        doc = yaml.safe_load(text)
+        doc = load_yaml(text)
     except yaml.YAMLError as err:
         raise JobError("", f"job file {path} is not valid YAML/JSON ({err})") from err
     except RecursionError as err:
@@ -211,7 +212,7 @@ def load_job(job: dict | str | Path) -> dict:
         text = job.strip()
         if "\n" in text or text.startswith("{") or ": " in text:
             try:
-                doc = yaml.safe_load(text)
+                doc = load_yaml(text)
             except yaml.YAMLError as err:
                 raise JobError("", f"job text is not valid YAML/JSON ({err})") from err
         else:

@@ -24,6 +24,7 @@ from pathlib import Path
 import yaml
 
 from cnc_msgs_py.machine import Drive, Machine, MachineError, parse_drive
+from cnc_msgs_py.yaml_text import load_yaml
 
 DESCRIPTION = "description"  # the plant's name when the bridge emulates the description itself
 
@@ -72,7 +73,7 @@ def load_plant(path: str, machine: Machine) -> Plant:
     if not path:
         return description_plant(machine)
     try:
-        doc = yaml.safe_load(Path(path).read_text())
+        doc = load_yaml(Path(path).read_text())
     except OSError as err:
         raise MachineError(f"plant file {path}: {err.strerror}") from err
     except yaml.YAMLError as err:

@@ -167,6 +167,9 @@ def plan_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--tools", help="a LinuxCNC tool.tbl for a G-code program (default: the machine's own)")
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--period", type=float, default=0.001, help="interpolation period (s)")
+    parser.add_argument("--compress", action="store_true",
+                        help="write setpoints.npz deflated: an eighth of the size, and for a 300-hole plate "
+                             "0.3 s more (default: stored, 0.03 s for its 19 MiB)")
     args = parser.parse_args(argv)
     import numpy as np
 
@@ -188,9 +191,10 @@ def plan_main(argv: list[str] | None = None) -> int:
     t = np.arange(int(np.ceil(plan.duration / args.period)) + 1) * args.period
     p, v, a = plan.sample(t)
     args.out.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(args.out / "setpoints.npz", t=t, **{j: p[:, i] for i, j in enumerate(plan.joints)},
-                        **{f"{j}_velocity": v[:, i] for i, j in enumerate(plan.joints)},
-                        **{f"{j}_acceleration": a[:, i] for i, j in enumerate(plan.joints)})
+    save = np.savez_compressed if args.compress else np.savez
+    save(args.out / "setpoints.npz", t=t, **{j: p[:, i] for i, j in enumerate(plan.joints)},
+         **{f"{j}_velocity": v[:, i] for i, j in enumerate(plan.joints)},
+         **{f"{j}_acceleration": a[:, i] for i, j in enumerate(plan.joints)})
     _write_json(args.out / "summary.json", {
         "job_id": job.job_id, "machine": machine.name, "duration_s": plan.duration, "setpoints": len(t),
         "joints": list(plan.joints), "events": [{"t": e.time, "name": e.name, **e.data} for e in plan.events],

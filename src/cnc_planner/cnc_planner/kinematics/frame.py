@@ -13,6 +13,7 @@ import yaml
 
 from cnc_msgs_py.machine import machine_dirs
 from cnc_msgs_py.schema import JobError, List, Num, Obj
+from cnc_msgs_py.yaml_text import load_yaml
 
 WORK_OFFSET = Obj({
     "origin": List(Num("mm"), length=3),
@@ -72,7 +73,7 @@ def load_work_offsets(path: str | Path | None = None) -> dict[str, Setup]:
     """Named work offsets (mm, deg in the file; converted by the job schema's units)."""
     path = Path(path) if path is not None else work_offsets_path()
     try:
-        doc = yaml.safe_load(path.read_text())
+        doc = load_yaml(path.read_text())
     except (OSError, yaml.YAMLError) as err:
         raise KinematicsError("setup.work_offset", f"cannot read {path}: {err}") from err
     if not isinstance(doc, dict):

@@ -96,16 +96,18 @@ class ThreadCycle:
 
     def __init__(self, spec: ThreadSpec, machine: Machine, period: float, theta0: float,
                  drive: DriveModel | None = None, settled: float = 0.0,
-                 start: tuple[float, float] | None = None, pulls: dict[int, float] | None = None) -> None:
+                 start: tuple[float, float] | None = None, pulls: dict[int, float] | None = None,
+                 room: float = JOIN_ROOM_REVS) -> None:
         """``theta0``: the spindle angle at cycle time 0 as if it turned at speed already
         (the helix is only ever evaluated after ``settled``, the cycle time before which no
         pass may join it: the spindle is at speed and its following error has died out
         meanwhile, while the axes already approach). ``start``: axis (x, z) where the
         cycle begins at rest, in front of the face (default: the clearance radius at
         start_z); the first pass runs from there straight onto its helix. ``pulls``: m by
-        which each pass's depth is raised (spec.left_standing), none by default."""
+        which each pass's depth is raised (spec.left_standing), none by default; ``room``:
+        revolutions of helix, at least, between joining it and the face."""
         self.spec, self.machine, self.period, self.theta0 = spec, machine, period, theta0
-        self.settled = settled
+        self.settled, self.room = settled, room
         self._ramps = Ramps(machine)
         self._retract_states: tuple[Trajectory | None, dict[int, list[float]]] = (None, {})  # _retracting's
         self._within: dict[int, bool] = {}  # _within_ramps' answers by pass
@@ -153,7 +155,7 @@ class ThreadCycle:
             starts = [(self.t_lead, [self.start[1], 0.0, 0.0])]
             crossings = list  # the first pass comes from rest: it never crosses the face back
         phase = TWO_PI * start / spec.starts
-        psi_room = TWO_PI * (spec.start_z / spec.pitch - JOIN_ROOM_REVS)  # the latest join before the face
+        psi_room = TWO_PI * (spec.start_z / spec.pitch - self.room)  # the latest join before the face
         first = max(math.ceil(starts[0][0] / period - 1e-9) + 1, math.ceil(self.settled / period - 1e-9))
         revolutions = self._revolutions(cut, phase, psi_room, first, first + math.ceil(MAX_AIR_S / period))
         within = self._within_ramps(cut)

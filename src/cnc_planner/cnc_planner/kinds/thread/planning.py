@@ -14,9 +14,9 @@ from cnc_msgs_py.units import to_mm
 from cnc_servo_bridge.drive import DriveModel
 
 from cnc_planner.kinds.thread.checks import check_thread
-from cnc_planner.kinds.thread.cycle import ThreadCycle
+from cnc_planner.kinds.thread.cycle import JOIN_ROOM_REVS, ThreadCycle
 from cnc_planner.kinds.thread.spec import JOINTS, TWO_PI, ThreadSpec
-from cnc_planner.kinds.thread.tolerance import leave_material
+from cnc_planner.kinds.thread.tolerance import join_room, leave_material
 from cnc_planner.kinematics import Kinematics
 from cnc_planner.motion.builder import PlanBuilder
 from cnc_planner.motion.timeline import Piece
@@ -93,11 +93,13 @@ def plan_thread(builder: PlanBuilder, spec: ThreadSpec, servo_period: float = 1e
     t_speed = max(t0, builder.spindle_ready)  # the spindle's angle, as if it turned at speed since t0
     theta0 = spindle.position_at(t_speed) - spec.spindle_speed * (t_speed - t0)
 
+    # compensated for the description, and joining and leaving material for every drive inside its tolerance
+    room = JOIN_ROOM_REVS if drive is None else join_room(spec, machine)
+
     def planned(pulls: dict[int, float]) -> ThreadCycle:
         return ThreadCycle(spec, machine, servo_period, theta0, drive,
-                           settled=builder.spindle_ready + SPINDLE_SETTLE - t0, start=start, pulls=pulls)
+                           settled=builder.spindle_ready + SPINDLE_SETTLE - t0, start=start, pulls=pulls, room=room)
 
-    # compensated for the description, and leaving material on every drive inside its tolerance
     cycle = planned({}) if drive is None else leave_material(planned({}), planned)
     for j, joint in enumerate(JOINTS):
         builder.timelines[joint].add(Piece(t0, cycle.duration, cycle.sampler(j)), cycle.end[j])

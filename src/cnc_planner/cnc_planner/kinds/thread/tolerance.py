@@ -11,7 +11,11 @@ any of them takes the tool on the thread, per pass, and raises each such pass by
 overcut plus an encoder count (spec.left_standing), re-planning until none is left
 (PULL_ROUNDS at most). With vibration the pass raised is the last vibrating one: the
 spring pass at full depth, which does not vibrate, still takes the thread to its depth on
-the described drives. A closed tolerance trusts the description: nothing is checked.
+the described drives. Each pass also joins its helix at least the slowest such drive's
+settling time before the face (join_room), so that the join's transient on it (X settling
+after its plunge, Z after its run-up to the lead) has mostly died out in the air rather
+than on the flank. A closed tolerance trusts the description: nothing is checked, the join room is
+JOIN_ROOM_REVS.
 
 The tip's depth below the stock is linear in x and z apart (below a cone too),
 and each axis's feedback depends on its own drive only, so the deepest point over every
@@ -25,16 +29,31 @@ from collections.abc import Callable
 
 import numpy as np
 
+from cnc_msgs_py.machine import Machine
 from cnc_msgs_py.units import to_mm
 from cnc_servo_bridge.drive import DriveModel
 
-from cnc_planner.kinds.thread.cycle import ThreadCycle
-from cnc_planner.kinds.thread.spec import JOINTS, ThreadError
+from cnc_planner.kinds.thread.cycle import JOIN_ROOM_REVS, ThreadCycle
+from cnc_planner.kinds.thread.spec import JOINTS, TWO_PI, ThreadError, ThreadSpec
 from cnc_planner.motion.compensation import tolerance_drives
 
 PULL_ROUNDS = 3  # re-plans at most; the first leaves every pass within a count
 ROUNDING_COUNTS = 1.5  # encoder counts: a reading one count past the depth is its rounding
+SETTLE_TIMES = 1.0  # settling times of the slowest drive inside the tolerance between a join and the face
 SETTLE_S = 0.05  # s past a pass's exit that its feedback, lagging, may still be on the thread
+
+
+def join_room(spec: ThreadSpec, machine: Machine) -> float:
+    """Revolutions of helix between joining it and the face: JOIN_ROOM_REVS where the
+    tolerance is closed (the compensation is exact there), else at least SETTLE_TIMES the
+    settling time of the slowest drive inside the tolerance (1/kp + velocity_lag + delay at
+    its corner), so that what the join leaves on a drive unlike the description (X
+    overshooting its plunge, Z its run-up to the lead) dies out in the air."""
+    drives = [d for j in JOINTS for d in tolerance_drives(machine, j)]
+    if len(drives) == len(JOINTS):
+        return JOIN_ROOM_REVS
+    settle = max(1.0 / d.kp + d.velocity_lag + d.delay for d in drives)
+    return max(JOIN_ROOM_REVS, SETTLE_TIMES * settle * spec.spindle_speed / TWO_PI)
 
 
 def overcuts(cycle: ThreadCycle) -> dict[int, float]:

@@ -85,9 +85,10 @@ class ThreadCycle:
     front of it (the deepest passes, where x needs that long to plunge), or turning at rest
     TURN_ROOM in front of the join. x turns back from its way out at the latest instant
     from which it still lands on the helix. Which helix revolution a pass joins is the
-    earliest whose join lies before the face by JOIN_ROOM_REVS, that the axes can reach
-    with the tool never inside the stock over the thread, and where the jerk steps by at
-    most JOIN_JERK_STEP. After the last pass z runs straight back to start_z while x pulls
+    earliest whose join lies before the face by ``room`` revolutions (JOIN_ROOM_REVS by
+    default; more on a machine whose drives may differ: tolerance.join_room), that the axes
+    can reach with the tool never inside the stock over the thread, and where the jerk
+    steps by at most JOIN_JERK_STEP. After the last pass z runs straight back to start_z while x pulls
     out and turns back down to the clearance radius (else z waits at rest until x is out),
     inside the cycle. With a drive model the whole cycle is compensated at once
     (motion.compensation): the command's lead-in of each pass runs while the tool is

@@ -36,18 +36,17 @@ from cnc_servo_bridge.drive import DriveModel
 RESIDUAL_LIMIT_MM = 0.005
 RESIDUAL_LIMIT_DEG = 0.01
 GAP = 1.5  # setpoints further apart than this many periods are not interpolated: the bridge holds
+BLOCK = 1 << 16  # servo periods replayed at once: a long recording's references are never all held
 ADVICE = "run cnc-identify on this bag and plan with the fitted description (CNC_MACHINE_PATH)"
 
 
-def references(run: Run, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def references(run: Run, acceleration: np.ndarray, period: float,
+               t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Position, velocity and acceleration references (rows: times t) as the bridge's setpoint
-    buffer gives them: linear between consecutive setpoints, a setpoint itself at its time,
-    otherwise (before, after, or in a gap) the nearest earlier position held at rest."""
+    buffer gives them from the run's setpoints (sent every ``period``): linear between
+    consecutive setpoints, a setpoint itself at its time, otherwise (before, after, or in a
+    gap) the nearest earlier position held at rest."""
     ct = run.command_t
-    acceleration = run.command_acceleration
-    if acceleration.shape != run.command.shape:  # a run built without them: from the velocities
-        acceleration = np.gradient(run.command_velocity, ct, axis=0) if len(ct) > 1 else np.zeros_like(run.command)
-    period = float(np.median(np.diff(ct))) if len(ct) > 1 else 0.0
     k = np.searchsorted(ct, t, side="right") - 1
     lo, hi = np.clip(k, 0, len(ct) - 1), np.clip(k + 1, 0, len(ct) - 1)
     span = ct[hi] - ct[lo]
@@ -63,15 +62,20 @@ def predicted_feedback(run: Run, machine: Machine) -> tuple[np.ndarray, np.ndarr
     """The recorded feedback's samples from the setpoints' start on (a mask over feedback_t)
     and what the description's drives would have read at each of them (rows, run.joints)."""
     fb_t = run.feedback_t
-    periods = [float(np.median(np.diff(x))) for x in (fb_t, run.command_t) if len(x) > 1]
-    period = min(periods)
+    command_period = float(np.median(np.diff(run.command_t)))
+    period = min(float(np.median(np.diff(fb_t))), command_period)
+    acceleration = run.command_acceleration
+    if acceleration.shape != run.command.shape:  # a run built without them: from the velocities
+        acceleration = np.gradient(run.command_velocity, run.command_t, axis=0)
     at_start = np.flatnonzero(fb_t <= run.command_t[0] + 1e-9)
     first = int(at_start[-1]) if len(at_start) else 0
     steps = int(np.rint((fb_t[-1] - fb_t[first]) / period)) + 1
-    grid = fb_t[first] + np.arange(steps) * period
     drives = DriveModel(machine, period, run.joints)
     drives.reset(run.feedback[first])
-    measured, _, _ = drives.run(*references(run, grid))
+    measured = np.empty((steps, len(run.joints)))
+    for lo in range(0, steps, BLOCK):
+        grid = fb_t[first] + np.arange(lo, min(lo + BLOCK, steps)) * period
+        measured[lo:lo + len(grid)] = drives.run(*references(run, acceleration, command_period, grid))[0]
     compared = np.zeros(len(fb_t), dtype=bool)
     compared[first:] = True
     rows = np.clip(np.rint((fb_t[first:] - fb_t[first]) / period).astype(int), 0, steps - 1)

@@ -19,7 +19,8 @@ from cnc_msgs_py.job import load_job_file, parse_job
 from cnc_msgs_py.machine import Machine, load_machine
 from cnc_planner.cli import VERDICT_FAILED, analyze_main, failed_verdicts, summary
 from cnc_planner.planning import plan_job
-from cnc_planner.replay import ADVICE
+from cnc_planner import replay
+from cnc_planner.replay import ADVICE, predicted_feedback
 from cnc_planner.report import build_report, predicted_run
 from cnc_planner.report_page import render
 from cnc_servo_bridge.drive import DriveModel
@@ -190,3 +191,13 @@ def test_the_recorded_lag_is_set_beside_the_predicted_one():
     x = build_report(run, machine)["drives"]["axes"]["x"]
     assert x["max_following_error"] > x["predicted_max_following_error"] + 0.01
     assert x["max_residual"] > 0.02 and x["rms_residual"] < x["max_residual"] and x["unit"] == "mm"
+
+
+def test_a_long_recording_is_replayed_in_blocks_to_the_same_feedback(monkeypatch):
+    """The replay steps the drives block by block (bounded memory on an hours-long bag), the
+    drives' state carried across: the same prediction as in one go, to the bit."""
+    machine, run = predicted("thread_m12")
+    compared, whole = predicted_feedback(run, machine)
+    monkeypatch.setattr(replay, "BLOCK", 777)
+    again = predicted_feedback(run, machine)
+    assert np.array_equal(again[0], compared) and np.array_equal(again[1], whole)

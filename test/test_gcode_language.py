@@ -217,7 +217,7 @@ def test_a_subroutine_in_its_own_file_is_found_by_name():
     ("G21\no1 if [1]\no2 endif\nM2", "line 3: o2 endif: no open o2 if"),
     ("G21\no1 break\nM2", "line 2: o1 break: not inside an o1 loop"),
     ("G21\no1 while [1]\nG0 X1\no1 endwhile\nM2", "line 4: o1 endwhile: loops jumped back 100000 times"),
-    ("G21\no1 return\nM2", "line 2: o1 return: not inside o1 sub"),
+    ("G21\no1 return\nM2", "line 2: o1 return: not inside a subroutine"),
     ("G21\nG0 X#<_ini[axis_x]max_limit>\nM2", "line 2: #<_ini[axis_x]max_limit>: reads the machine's INI"),
     ("G21\n#5221=1\nM2", "line 2: #5221: LinuxCNC keeps it in its var file"),
 ])
@@ -225,3 +225,27 @@ def test_runaway_and_malformed_control_flow_is_refused_at_its_line(text, reason)
     with pytest.raises(GcodeError) as err:
         ops(text)
     assert str(err.value).startswith(reason), str(err.value)
+
+
+def test_linuxcncs_own_forms_return_by_any_number_percent_ends_full_circles_g64_p():
+    """As LinuxCNC's example programs write them: ``return`` inside an ``if`` with that if's
+    number, a program closed by ``%`` without M2, a full circle by I/J alone, G64 P Q."""
+    text = """%
+G21 G90 G17 G64 P0.01 Q0.01
+o1000 sub
+  o1010 if [#1 GT 0]
+    o1010 return [123 * #1]
+  o1010 endif
+o1000 endsub [4712]
+o1000 call [2]
+G0 X[#<_value> / 246] Y0 Z0
+o1000 call [0]
+G0 Y[#<_value> / 4712]
+G2 I1 J0 F100
+%
+G0 X99
+"""
+    got = moves(text)
+    assert got[:2] == [{"rapid": {"x": 1.0, "y": 0.0, "z": 0.0}}, {"rapid": {"x": 1.0, "y": 1.0, "z": 0.0}}]
+    assert got[-1]["linear"] == {"x": 1.0, "y": 1.0, "z": 0.0}  # back at the start: a full circle, then %
+    assert len(got) > 10

@@ -1,6 +1,7 @@
 """O-word control flow as LinuxCNC 2.9 runs it: the program's lines in the order they execute.
 
-``sub``/``endsub``/``return`` (with a value into ``#<_value>``), ``call`` with arguments into
+``sub``/``endsub``/``return`` (with a value into ``#<_value>``; a ``return`` may carry any
+O-number, as LinuxCNC's own examples write it), ``call`` with arguments into
 #1-#30, ``if``/``elseif``/``else``/``endif``, ``while``/``endwhile``, ``do``/``while``,
 ``repeat``/``endrepeat``, ``break``/``continue``. The statements pair by their O-number as in
 LinuxCNC; every pairing is checked before the first line runs, so a malformed program is
@@ -96,8 +97,8 @@ def pair(unit: Unit) -> Unit:
             unit.jumps[i] = loop[2]
         elif o.kind in ("endsub", "return"):
             sub = next((s for s in stack if s[0] == "sub"), None)
-            if sub is None or sub[1] != o.name:
-                raise refuse(f"not inside o{_label(o.name)} sub")
+            if sub is None or o.kind == "endsub" and sub[1] != o.name:
+                raise refuse(f"not inside o{_label(o.name)} sub" if o.kind == "endsub" else "not inside a subroutine")
             if o.kind == "endsub":
                 if top != sub:
                     raise refuse(f"o{_label(top[1])} {top[0]} is still open")  # type: ignore[index]

@@ -232,8 +232,21 @@ def read_lines(text: str) -> list[Line]:
     if not isinstance(text, str):
         raise GcodeError(0, "program", "must be G-code text")
     lines = []
+    percent = 0
     for n, raw in enumerate(text.splitlines(), start=1):
+        if raw.strip() == "%":
+            percent += 1
+            if percent == 2 or lines:
+                break  # LinuxCNC reads no further than the closing %
+            continue
         line = read_line(raw, n)
         if line is not None:
             lines.append(line)
     return lines
+
+
+def closed_by_percent(text: str) -> bool:
+    """Whether the program opens and closes with ``%`` lines, which end it as M2 does."""
+    marks = [k for k, raw in enumerate(text.splitlines()) if raw.strip() == "%"]
+    first = next((k for k, raw in enumerate(text.splitlines()) if raw.strip()), -1)
+    return len(marks) >= 2 and marks[0] == first

@@ -8,7 +8,7 @@
 - ``#5220`` the work offset in force (1 = G54), ``#5400`` the tool in the spindle,
   ``#5401``-``#5409`` its applied offsets (Z = the G43 length), ``#5410`` its diameter,
   ``#5420``-``#5428`` the current position (X Y Z A B C U V W), program coordinates and
-  units: read only, the interpreter's.
+  units: read only, the interpreter's. ``#5599`` and up a program may write, as in LinuxCNC.
 - ``#<name>``: local to the subroutine call (or the main program) that writes it; read
   before any write is an error, as in LinuxCNC. ``#<_name>``: global.
 - ``#<_x>``, ``#<_metric>``, ... : the documented read-only system parameters
@@ -25,6 +25,7 @@ MAX_NUMBER = 5602  # LinuxCNC's RS274NGC_MAX_PARAMETERS: valid numbers are below
 ARGUMENTS = 30
 VAR_FILE = range(5161, 5391)
 READ_ONLY_FROM = 5400
+WRITABLE_FROM = 5599  # #5599 (DEBUG output on/off) and up LinuxCNC lets a program write
 INTEGER_TOLERANCE = 1.0e-4  # LinuxCNC reads an integer value within this of a whole number
 
 SYSTEM_NAMES = (
@@ -62,7 +63,7 @@ class Parameters:
 
     def read(self, number: float) -> float:
         n = self._number(number)
-        if n >= READ_ONLY_FROM or n == 5220:
+        if READ_ONLY_FROM <= n < WRITABLE_FROM or n == 5220:
             return self.numbered_system(n)
         return self.numbered.get(n, 0.0)
 
@@ -92,7 +93,7 @@ class Parameters:
             (self.globals if target.startswith("_") else self.frames[-1][0])[target] = value
             return
         n = self._number(target)
-        if n >= READ_ONLY_FROM or n == 5220:
+        if READ_ONLY_FROM <= n < WRITABLE_FROM or n == 5220:
             raise ExprError(f"#{n}", "is read only (the interpreter's)")
         if n in VAR_FILE:
             raise ExprError(f"#{n}", "LinuxCNC keeps it in its var file: the job's setup and work_offsets "

@@ -14,7 +14,7 @@ from . import arcs, system
 from .control import Executor
 from .drilling import hole
 from .lathe import g71, g76
-from .lexer import Block, GcodeError, word_text
+from .lexer import Block, GcodeError, closed_by_percent, word_text
 from .modal import DRILL_CYCLES, MOTION, Modal, check_groups
 from .parameters import Parameters, whole
 
@@ -97,7 +97,7 @@ class Translator:
             if stop:
                 ended = True
                 break
-        if not ended:
+        if not ended and not closed_by_percent(text):
             last = self.executor.main.lines[-1].line if self.executor.main.lines else 0
             raise GcodeError(last + 1, "end of file", "the program ends without M2 or M30")
         self._flush()
@@ -207,6 +207,8 @@ class Translator:
             s.incremental = 91.0 in g
         if 90.1 in g or 91.1 in g:
             s.arc_absolute = 90.1 in g
+        if 64.0 in g:
+            used.update(k for k in "PQ" if k in b.words)  # blending tolerances: read, not applied (docs/gcode.md)
         if 98.0 in g or 99.0 in g:
             s.retract_initial = 98.0 in g
         if 4.0 in g:
@@ -269,7 +271,8 @@ class Translator:
             if b.has_axes() or motion is not None:
                 self._hole(b, used)
             return
-        if not b.has_axes():
+        full_circle = s.motion in (2.0, 3.0) and any(k in b.words for k in "IJK")
+        if not b.has_axes() and not full_circle:
             return
         if s.motion in (0.0, 1.0):
             before = dict(s.position)

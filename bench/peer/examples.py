@@ -1,0 +1,97 @@
+"""LinuxCNC 2.9's example programs (Debian's linuxcnc-uspace, /usr/share/linuxcnc/ncfiles)
+through our G-code front end and planner, beside LinuxCNC's own interpreter (rs274 -g).
+
+The machining examples each run on a shipped machine with its own tool table (mill3, or
+lathe for the lathe programs) and plan, or are refused: for a machine reason (travel, an
+axis the machine lacks) or for a language reason (a word this front end refuses, with its
+reason). Probing, remap and I/O demos and the language demos that move no axis are left
+out, each with why. The files are LinuxCNC's (GPL): they are read where they are
+installed, never copied; bench/results/linuxcnc_examples.json keeps each one's sha256,
+outcome and rs274's verdict, and test/test_gcode_examples.py checks the outcomes.
+
+    apt-get install linuxcnc-uspace
+    .venv/bin/python bench/peer/examples.py      # writes bench/results/linuxcnc_examples.json
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+NCFILES = Path("/usr/share/linuxcnc/ncfiles")
+RESULTS = Path(__file__).resolve().parents[1] / "results" / "linuxcnc_examples.json"
+LATHE = ("lathe", "g76.ngc", "threading.ngc")  # programs for a lathe (X/Z, G7/G18, threads)
+LEFT_OUT = {
+    "gridprobe.ngc": "probing (G38.2)", "probe-hole.ngc": "probing (G38.x)", "smartprobe.ngc": "probing (G38.5)",
+    "tool-length-probe.ngc": "probing (G38.2)", "touchoff.ngc": "a probing/touch-off macro (no motion of its own)",
+    "m6remap.ngc": "remap demo", "m6demo.ngc": "remap demo", "m61demo.ngc": "remap demo", "m250.ngc": "remap demo",
+    "testm6fail.ngc": "remap demo", "g881.ngc": "remap subroutine", "g881min.ngc": "remap subroutine",
+    "g882.ngc": "remap subroutine", "m75.ngc": "remap demo", "m76.ngc": "remap demo",
+    "plasmatest.ngc": "plasma I/O demo (torch on/off, THC)",
+    "factorial.ngc": "language demo, moves no axis", "retval.ngc": "language demo, moves no axis",
+    "roparams.ngc": "language demo, moves no axis", "g20sub.ngc": "a subroutine file, moves no axis of its own",
+    "nestedcall.ngc": "language demo (its own 'callsub' typo is refused by rs274 too)",
+}
+MACHINE_REASONS = ("outside its travel", "has no", "exceeds the spindle", "cannot run")
+
+
+def machine_of(name: str) -> str:
+    return "lathe" if name.startswith(LATHE) or name in LATHE else "mill3"
+
+
+def ours(path: Path, machine: str) -> tuple[str, str]:
+    """('plans', seconds) or ('machine' | 'language', the refusal) for one file."""
+    from cnc_msgs_py.gcode.document import job_document
+    from cnc_msgs_py.job import parse_job
+    from cnc_msgs_py.machine import load_machine
+    from cnc_msgs_py.schema import JobError
+
+    from cnc_planner.planning import plan_job
+    try:
+        job = parse_job(job_document(path, machine))
+        return "plans", f"{plan_job(job, load_machine(machine)).duration:.1f} s"
+    except JobError as err:
+        text = str(err)
+        return ("machine" if any(k in text for k in MACHINE_REASONS) else "language"), text
+
+
+def rs274_verdict(path: Path) -> str:
+    """'reads' when rs274 -g interprets the whole file, else its first error line."""
+    out = subprocess.run(["rs274", "-g", str(path)], capture_output=True, text=True, timeout=60)
+    errors = [ln for ln in (out.stdout + out.stderr).splitlines()
+              if ln.strip() and not ln.lstrip()[:1].isdigit() and not ln.startswith("executing")]
+    return errors[0].strip() if errors else "reads"
+
+
+def survey(folder: Path = NCFILES) -> dict:
+    rows = {}
+    for path in sorted(folder.glob("*.ngc")):
+        name = path.name
+        sha = hashlib.sha256(path.read_bytes()).hexdigest()
+        if name in LEFT_OUT:
+            rows[name] = {"sha256": sha, "left_out": LEFT_OUT[name]}
+            continue
+        machine = machine_of(name)
+        outcome, detail = ours(path, machine)
+        rows[name] = {"sha256": sha, "machine": machine, "outcome": outcome, "detail": detail,
+                      "rs274": rs274_verdict(path)}
+    return rows
+
+
+def main() -> int:
+    rows = survey()
+    machining = [r for r in rows.values() if "outcome" in r]
+    plans = sum(r["outcome"] == "plans" for r in machining)
+    machine = sum(r["outcome"] == "machine" for r in machining)
+    for name, r in rows.items():
+        print(f"{name:55s} {r.get('outcome', 'left out'):9s} {r.get('detail', r.get('left_out'))}")
+    print(f"{len(machining)} machining examples of {len(rows)}: {plans} plan, {machine} refused for a machine "
+          f"reason, {len(machining) - plans - machine} for a language reason")
+    RESULTS.write_text(json.dumps(rows, indent=1, sort_keys=True) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

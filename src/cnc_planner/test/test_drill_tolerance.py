@@ -11,12 +11,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cnc_msgs_py.machine import load_machine
-from cnc_msgs_py.plant import outside_tolerance, Plant
+from cnc_msgs_py.plant import Plant, outside_tolerance
 from cnc_planner.kinds.drill.cycle import DrillCycle
 from cnc_planner.kinds.drill.drilling import plan_drilling
 from cnc_planner.motion.builder import PlanBuilder
 from cnc_analysis.drilling import analyze_drilling
 from cnc_servo_bridge.drive import DriveModel
+
+from drawn_plants import plants_within
 
 MILL = load_machine("mill3")
 PERIOD = 1e-3
@@ -49,30 +51,14 @@ def violations(pitch: float, depth: float, drives: dict) -> int:
     return judged(pitch, depth, drives)["safety_violations"]
 
 
-def drive_within(draw, joint: str):
-    """One drive drawn inside its description's tolerance."""
-    d = MILL.drives[joint]
-    tol = d.tolerance
-    factor = {k: draw(st.floats(*getattr(tol, k))) for k in ("kp", "velocity_ff", "velocity_lag")}
-    delay = draw(st.integers(round(tol.delay[0] / PERIOD), round(tol.delay[1] / PERIOD))) * PERIOD
-    return dataclasses.replace(d, kp=d.kp * factor["kp"], velocity_ff=d.velocity_ff * factor["velocity_ff"],
-                               velocity_lag=d.velocity_lag * factor["velocity_lag"], delay=d.delay + delay)
-
-
-@st.composite
-def plants_within(draw) -> dict:
-    return {j: drive_within(draw, j) for j in XYZ}
-
-
 @settings(max_examples=40, deadline=None)
-@given(plant=plants_within(), geometry=st.sampled_from(GEOMETRIES))
+@given(plant=plants_within(MILL, XYZ, PERIOD), geometry=st.sampled_from(GEOMETRIES))
 def test_no_xy_motion_below_r_on_any_plant_inside_the_tolerance(plant, geometry):
-    assert outside_tolerance(MILL, Plant("drawn", {**MILL.drives, **plant})) == []
     assert violations(*geometry, plant) == 0
 
 
 @settings(max_examples=25, deadline=None)
-@given(plant=plants_within(), geometry=st.sampled_from(GEOMETRIES))
+@given(plant=plants_within(MILL, XYZ, PERIOD), geometry=st.sampled_from(GEOMETRIES))
 def test_no_plant_inside_the_tolerance_drills_deeper_than_programmed(plant, geometry):
     """Material is left rather than cut: the deepest corner sets the turning point."""
     depths = [h["depth_mm"] for h in judged(*geometry, plant)["holes"]]

@@ -22,13 +22,13 @@ from typing import Callable
 import numpy as np
 
 from cnc_msgs_py.machine import Drive, Machine
-from cnc_msgs_py.plant import tolerance_corners
 from cnc_servo_bridge.drive import DriveModel
 
 from cnc_planner.kinds.drill._lag_kernel import margins as lag_scan
 from cnc_planner.kinds.drill.cycle import DrillCycle, DrillError
 from cnc_planner.kinds.drill.z_axis import ZAxis
 from cnc_planner.motion.builder import PlanBuilder
+from cnc_planner.motion.compensation import tolerance_drives
 from cnc_planner.motion.plan_check import BLOCK_S
 from cnc_planner.motion.timeline import Plan
 
@@ -58,12 +58,6 @@ def _feedback(machine: Machine, plan: Plan, ts: np.ndarray, period: float, joint
     return out.reshape(len(ts), len(drives), len(joints)).transpose(1, 0, 2)[np.argsort(order)]
 
 
-def drives_to_check(machine: Machine, joint: str) -> list[Drive]:
-    """The described drive of a joint and the corners of its tolerance."""
-    described = machine.drives[joint]
-    return [described] + [d for d in tolerance_corners(described) if d != described]
-
-
 class ServoLag:
     """The drive model's verdict on a cycle planned from ``start``: its lag margins, and
     the gaps that leave none."""
@@ -75,8 +69,8 @@ class ServoLag:
         self.z = z
         self.n = len(cycle.holes)
         # X and Y move together: one drive for both (their descriptions' corners, if they differ, each)
-        self.xy_drives = drives_to_check(machine, "x") if machine.drives["x"] == machine.drives["y"] else None
-        self.z_drives = drives_to_check(machine, "z")
+        self.xy_drives = tolerance_drives(machine, "x") if machine.drives["x"] == machine.drives["y"] else None
+        self.z_drives = tolerance_drives(machine, "z")
 
     def lag_margins(self, plan: Plan, infos: list[dict], t0: float) -> tuple[np.ndarray, np.ndarray]:
         """Per hole, in servo periods, from the drive model's feedback: how late X/Y settles
@@ -105,8 +99,8 @@ class ServoLag:
         if self.xy_drives is not None:
             return _feedback(self.machine, plan, ts, period, ("x", "y"), self.xy_drives)
         # X and Y described differently: each at each of its own corners
-        xs = _feedback(self.machine, plan, ts, period, ("x",), drives_to_check(self.machine, "x"))[:, :, 0]
-        ys = _feedback(self.machine, plan, ts, period, ("y",), drives_to_check(self.machine, "y"))[:, :, 0]
+        xs = _feedback(self.machine, plan, ts, period, ("x",), tolerance_drives(self.machine, "x"))[:, :, 0]
+        ys = _feedback(self.machine, plan, ts, period, ("y",), tolerance_drives(self.machine, "y"))[:, :, 0]
         return np.stack(np.broadcast_arrays(xs[:, None, :], ys[None, :, :]), axis=-1).reshape(-1, len(ts), 2)
 
     def safe_gaps(self, emit: Emit, t0: float, e_down: np.ndarray, e_up: np.ndarray,

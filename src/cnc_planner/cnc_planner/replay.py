@@ -16,7 +16,9 @@ The replay takes the reference as the bridge's buffer gives it (linear between s
 the first point held before them, the last reference held at rest after them or across a
 gap in them), steps the drives once per servo period and reads the encoders before each
 step, as the bridge publishes them. The servo period is the finer of the feedback's and the
-setpoints' sample periods (the bridge publishes every servo period by default).
+setpoints' sample periods (the bridge publishes every servo period by default). An alarm's
+stop is the bridge's own, no recorded setpoint: past it the replay and the recording part,
+and the section says so.
 """
 from __future__ import annotations
 
@@ -112,5 +114,7 @@ def drives_section(run: Run, machine: Machine) -> dict | None:
                f"{axes[j]['unit']})" for j in differs]
     says = ("; ".join(clauses) + f": {ADVICE}" if differs else
             f"every axis follows its description within {RESIDUAL_LIMIT_MM:g} mm ({RESIDUAL_LIMIT_DEG:g} deg rotary)")
+    if run.alarms:  # the bridge's stop is no setpoint of the recording: the replay cannot follow it
+        says += "; the bridge raised an alarm and stopped the axes on its own, which the replay does not predict"
     return {"residual_limit_mm": RESIDUAL_LIMIT_MM, "residual_limit_deg": RESIDUAL_LIMIT_DEG,
             "as_described": not differs, "differs": differs, "says": says, "axes": axes}

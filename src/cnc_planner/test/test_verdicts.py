@@ -181,6 +181,8 @@ def test_the_drives_section_names_the_axis_that_follows_differently(axis, alter)
     assert f"drives: DIFFER: {axis} follows differently" in summary(report)
     page = render(report, [])
     assert "Drives vs description" in page and f"{axis} differs" in page
+    run.alarms = ["following error on z: 0.003000 exceeds 0.002000"]
+    assert build_report(run, machine)["drives"]["says"].endswith("which the replay does not predict")
 
 
 def test_the_recorded_lag_is_set_beside_the_predicted_one():

@@ -3,6 +3,8 @@
 Writing takes the serialized CDR bytes exactly as they came off the wire; reading
 rebuilds the commanded setpoints the bridge executed (later chunks replace buffered
 points from their first stamp on, as the bridge does) and the feedback it published.
+Each topic is read once; joint_states and joint_trajectory, nearly every byte of a
+recording, are cut into arrays all at once (cdr_arrays.py), /clock is not read.
 """
 from __future__ import annotations
 
@@ -17,6 +19,8 @@ from rosbags.typesys import Stores, get_typestore
 
 from cnc_msgs_py.topics import PLANT_KEY
 from cnc_msgs_py.units import NS
+
+from cnc_analysis.cdr_arrays import joint_states, trajectory_chunks
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 
@@ -82,10 +86,6 @@ class Run:
         return self.joints.index(joint)
 
 
-def _ns(stamp) -> int:
-    return stamp.sec * NS + stamp.nanosec
-
-
 def read_run(bag: Path) -> Run:
     """Read a recorded run.
 
@@ -97,37 +97,23 @@ def read_run(bag: Path) -> Run:
     if not bag.exists():
         raise FileNotFoundError(f"no recording at {bag}")
     run = Run()
-    fb_t, fb_p, fb_v = [], [], []
-    setpoints: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
+    arrays: dict[str, list[bytes]] = {"joint_states": [], "joint_trajectory": []}  # read together below
+    received: list[int] = []  # the chunks' bag times
+    first: list[str] = []  # which of those two topics came first (its joint names are the run's)
     try:
         with AnyReader([bag], default_typestore=TYPESTORE) as reader:
-            for conn, received_ns, raw in reader.messages():
+            types = {c.topic.rsplit("/", 1)[-1]: c.msgtype for c in reader.connections}
+            for conn, received_ns, raw in reader.messages(
+                    connections=[c for c in reader.connections if c.topic.rsplit("/", 1)[-1] != "clock"]):
                 topic = conn.topic.rsplit("/", 1)[-1]
+                if topic in arrays:
+                    arrays[topic].append(raw)
+                    first += [] if first else [topic]
+                    if topic == "joint_trajectory":
+                        received.append(received_ns)
+                    continue
                 msg = reader.deserialize(raw, conn.msgtype)
-                if topic == "joint_states":
-                    if not run.joints:
-                        run.joints = tuple(msg.name)
-                    fb_t.append(_ns(msg.header.stamp))
-                    fb_p.append(np.asarray(msg.position))
-                    fb_v.append(np.asarray(msg.velocity))
-                elif topic == "joint_trajectory":
-                    head = _ns(msg.header.stamp)
-                    times = np.array([head + _ns(p.time_from_start) for p in msg.points], dtype=np.int64)
-                    order = None
-                    if run.joints:
-                        order = [list(msg.joint_names).index(j) for j in run.joints]
-                    else:
-                        run.joints = tuple(msg.joint_names)
-                    pos = np.array([p.positions for p in msg.points])
-                    vel = np.array([p.velocities for p in msg.points])
-                    acc = np.array([p.accelerations if len(p.accelerations) else np.zeros(len(p.positions))
-                                    for p in msg.points])
-                    if order is not None:
-                        pos, vel, acc = pos[:, order], vel[:, order], acc[:, order]
-                    setpoints.append((times, pos, vel, acc))
-                    run.chunks.append(Chunk(int(times[0]), int(times[-1]), len(times), bool(np.any(vel[-1] != 0.0)),
-                                            received_ns))
-                elif topic == "job_goal":
+                if topic == "job_goal":
                     run.goals.append(msg.data)
                 elif topic == "job_status":
                     run.statuses.append(json.loads(msg.data))
@@ -136,12 +122,24 @@ def read_run(bag: Path) -> Run:
                 elif topic == "diagnostics":
                     run.alarms += [s.message for s in msg.status if s.level >= 2]
                     run.plant = next((v.value for s in msg.status for v in s.values if v.key == PLANT_KEY), run.plant)
+            feedback = joint_states(arrays["joint_states"],
+                                    lambda raw: reader.deserialize(raw, types["joint_states"]))
+            chunks = trajectory_chunks(arrays["joint_trajectory"],
+                                       lambda raw: reader.deserialize(raw, types["joint_trajectory"]))
     except (OSError, KeyError, ValueError, AnyReaderError) as err:
         raise ValueError(f"cannot read recording {bag}: {err}") from err
-    if fb_t:
-        run.feedback_t = np.array(fb_t, dtype=np.int64) / NS
-        run.feedback = np.array(fb_p)
-        run.feedback_velocity = np.array(fb_v)
+    if first:
+        run.joints = tuple(feedback[0][0] if first[0] == "joint_states" else chunks[0][0])
+    if feedback:
+        run.feedback_t = np.concatenate([t for _, t, _, _ in feedback]) / NS
+        run.feedback = np.concatenate([p for _, _, p, _ in feedback])
+        run.feedback_velocity = np.concatenate([v for _, _, _, v in feedback])
+    setpoints = []
+    for (names, times, pos, vel, acc), received_ns in zip(chunks, received):
+        order = [names.index(j) for j in run.joints]
+        setpoints.append((times, pos[:, order], vel[:, order], acc[:, order]))
+        run.chunks.append(Chunk(int(times[0]), int(times[-1]), len(times), bool(np.any(vel[-1] != 0.0)),
+                                received_ns))
     if setpoints:
         times, pos, vel, acc = _executed(setpoints)
         run.command_t, run.command, run.command_velocity, run.command_acceleration = times / NS, pos, vel, acc

@@ -32,10 +32,17 @@ def test_rejected_job_page_says_why_and_nothing_else(tmp_path):
 
 def test_chip_breaking_thread_and_turning_verdicts():
     aircut = {**BASE, "aircut": {"revolutions": 118, "revolutions_with_aircut": 118, "max_chip_revs": 0.94,
-                                 "commanded": {"max_chip_revs": 0.96}}}
+                                 "commanded": {"max_chip_revs": 0.96},
+                                 "verdict": {"passed": True, "criterion": "chips", "says": "0.94 rev"}}}
     assert cards(aircut)["Chip breaking"][0] == "broken" and cards(aircut)["Chip breaking"][2] == "ok"
-    aircut["aircut"]["revolutions_with_aircut"] = 100
+    # one vibration every 3 revolutions: an air-cut in a third of them, chips within the window
+    aircut["aircut"].update(revolutions_with_aircut=40, max_chip_revs=2.43)
+    assert cards(aircut)["Chip breaking"][:3:2] == ("broken", "ok")
+    aircut["aircut"]["verdict"] = {"passed": False, "criterion": "chips", "says": "1 of 1 vibrated feeds ..."}
     assert cards(aircut)["Chip breaking"][2] == "bad"
+    aircut["aircut"].update(revolutions=0, revolutions_with_aircut=0, max_chip_revs=0.0,
+                            verdict={"passed": True, "criterion": "chips", "says": ""})
+    assert cards(aircut)["Chip breaking"][:3:2] == ("not judged", "info")
 
     thread = {**BASE, "thread": {"chips_broken": False, "max_chip_revs": 7.5, "cutting_passes": 6,
                                  "full_depth": True, "depth_error_mm": 0.0, "overcut_mm": 0.0002,

@@ -3,16 +3,17 @@ from __future__ import annotations
 
 import math
 
-from cnc_analysis.aircut import CHIP_LIMIT_REVS
-
 from cnc_planner.kinds.kind import Card
 
 
 def cards(aircut: dict) -> list[Card]:
+    """The section's verdict (each feed's longest chip within its waveform's window,
+    vibration.report) as the machinist reads it; nothing to judge without one revolution."""
     revs, broken = aircut.get("revolutions", 0), aircut.get("revolutions_with_aircut", 0)
     chip = aircut.get("max_chip_revs", math.inf)
-    good = revs > 0 and broken == revs and chip <= CHIP_LIMIT_REVS
-    return [("Chip breaking", "broken" if good else "long chips",
+    passed = aircut["verdict"]["passed"]
+    value, cls = ("long chips", "bad") if not passed else ("broken", "ok") if revs > 0 else ("not judged", "info")
+    return [("Chip breaking", value,
              f"air-cut in {broken} of {revs} revolutions; longest chip {chip:.2f} rev "
              f"(commanded {aircut.get('commanded', {}).get('max_chip_revs', float('nan')):.2f})",
-             "ok" if good else "bad")]
+             cls)]

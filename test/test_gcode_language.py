@@ -249,3 +249,18 @@ G0 X99
     assert got[:2] == [{"rapid": {"x": 1.0, "y": 0.0, "z": 0.0}}, {"rapid": {"x": 1.0, "y": 1.0, "z": 0.0}}]
     assert got[-1]["linear"] == {"x": 1.0, "y": 1.0, "z": 0.0}  # back at the start: a full circle, then %
     assert len(got) > 10
+
+
+def test_polar_words_about_the_origin():
+    """LinuxCNC's hole-circle.ngc with the spindle on: G91 ^60 L6 steps round the origin;
+    rs274 -g drills (0.75, 1.299), (-0.75, 1.299), (-1.5, 0), ... (inches, 4 decimals)."""
+    text = "G20 G17 G90\nM3 S1000\nG0 X1.5 Y0 Z0\nG91 G81 R.1 Z-.5 ^60 L6 F10\nG90 G80\nG0 @2 ^90\nG91 G0 @-1 ^90\nM2"
+    docs = ops(text)
+    holes = docs[1]["drill"]["holes"]
+    want = [(0.75, 1.299), (-0.75, 1.299), (-1.5, 0.0), (-0.75, -1.299), (0.75, -1.299), (1.5, 0.0)]
+    assert [(round(x / 25.4, 4), round(y / 25.4, 4)) for x, y in holes] == want
+    after = [m["rapid"] for m in moves(text)[-2:]]
+    assert (after[0]["x"], after[0]["y"]) == pytest.approx((0.0, 2 * 25.4))
+    assert (after[1]["x"], after[1]["y"]) == pytest.approx((-25.4, 0.0))
+    with pytest.raises(GcodeError, match=r"^line 2: @: polar words cannot share a line with X or Y"):
+        ops("G21 G90 G17\nG0 X1 @2\nM2", start={"x": 0.0, "y": 0.0})

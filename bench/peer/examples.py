@@ -5,7 +5,8 @@ The machining examples each run on a shipped machine with its own tool table (mi
 lathe for the lathe programs) and plan, or are refused: for a machine reason (travel, an
 axis the machine lacks) or for a language reason (a word this front end refuses, with its
 reason). Probing, remap and I/O demos and the language demos that move no axis are left
-out, each with why. The files are LinuxCNC's (GPL): they are read where they are
+out, each with why. A refusal for a program reason is the program's own doing: drilling
+with the spindle off, a work offset (G55..) the job gives no values for. The files are LinuxCNC's (GPL): they are read where they are
 installed, never copied; bench/results/linuxcnc_examples.json keeps each one's sha256,
 outcome and rs274's verdict, and test/test_gcode_examples.py checks the outcomes.
 
@@ -33,8 +34,12 @@ LEFT_OUT = {
     "factorial.ngc": "language demo, moves no axis", "retval.ngc": "language demo, moves no axis",
     "roparams.ngc": "language demo, moves no axis", "g20sub.ngc": "a subroutine file, moves no axis of its own",
     "nestedcall.ngc": "language demo (its own 'callsub' typo is refused by rs274 too)",
+    "increment.ngc": "a subroutine file, moves no axis of its own",
 }
 MACHINE_REASONS = ("outside its travel", "has no", "exceeds the spindle", "cannot run")
+# the program asks for what the machine must not do or the job does not give: drilling with
+# the spindle off, a work offset the job has no values for
+PROGRAM_REASONS = ("the spindle is off", "no such work offset")
 
 
 def machine_of(name: str) -> str:
@@ -42,7 +47,7 @@ def machine_of(name: str) -> str:
 
 
 def ours(path: Path, machine: str) -> tuple[str, str]:
-    """('plans', seconds) or ('machine' | 'language', the refusal) for one file."""
+    """('plans', seconds) or ('machine' | 'program' | 'language', the refusal) for one file."""
     from cnc_msgs_py.gcode.document import job_document
     from cnc_msgs_py.job import parse_job
     from cnc_msgs_py.machine import load_machine
@@ -54,7 +59,9 @@ def ours(path: Path, machine: str) -> tuple[str, str]:
         return "plans", f"{plan_job(job, load_machine(machine)).duration:.1f} s"
     except JobError as err:
         text = str(err)
-        return ("machine" if any(k in text for k in MACHINE_REASONS) else "language"), text
+        if any(k in text for k in MACHINE_REASONS):
+            return "machine", text
+        return ("program" if any(k in text for k in PROGRAM_REASONS) else "language"), text
 
 
 def rs274_verdict(path: Path) -> str:
@@ -84,11 +91,11 @@ def main() -> int:
     rows = survey()
     machining = [r for r in rows.values() if "outcome" in r]
     plans = sum(r["outcome"] == "plans" for r in machining)
-    machine = sum(r["outcome"] == "machine" for r in machining)
+    count = {k: sum(r["outcome"] == k for r in machining) for k in ("machine", "program", "language")}
     for name, r in rows.items():
         print(f"{name:55s} {r.get('outcome', 'left out'):9s} {r.get('detail', r.get('left_out'))}")
-    print(f"{len(machining)} machining examples of {len(rows)}: {plans} plan, {machine} refused for a machine "
-          f"reason, {len(machining) - plans - machine} for a language reason")
+    print(f"{len(machining)} machining examples of {len(rows)}: {plans} plan; refused for a machine reason "
+          f"{count['machine']}, a program reason {count['program']}, a language reason {count['language']}")
     RESULTS.write_text(json.dumps(rows, indent=1, sort_keys=True) + "\n")
     return 0
 

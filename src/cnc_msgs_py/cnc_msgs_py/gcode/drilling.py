@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 from .cycles import drill_plane
 from .lexer import Block, GcodeError, word_text
+from .polar import has_polar, polar_xy
 
 if TYPE_CHECKING:
     from .translate import Translator
@@ -74,6 +75,8 @@ def hole(tr: "Translator", b: Block, used: set[str]) -> None:
     holes = tr._begin(b.line, "drill", key, block)["holes"]
     pos = s.position
     for _ in range(repeats):
+        if has_polar(b):
+            pos["x"], pos["y"] = polar_xy(s, b, used)
         for axis in ("x", "y"):
             if axis.upper() in b.words:
                 used.add(axis.upper())

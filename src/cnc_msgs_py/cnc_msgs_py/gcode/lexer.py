@@ -6,8 +6,8 @@ Spaces outside comments mean nothing, letters are case-insensitive, comments are
 (not nested) or ``;`` to the end of the line, a line of ``%`` marks the file's ends. A word's
 value is a number, a parameter (``#3``, ``#<depth>``), an ``[expression]`` or a function
 (``expressions``); ``#n=value`` sets a parameter after every value of its line is read
-(LinuxCNC's reads-before-writes). Polar ``^`` ``@`` and block delete ``/`` are refused by line
-and word, never skipped.
+(LinuxCNC's reads-before-writes). Polar ``@`` ``^`` are words (``polar``); block delete ``/``
+is refused by line and word, never skipped.
 """
 from __future__ import annotations
 
@@ -17,9 +17,7 @@ from typing import Callable
 from ..schema import JobError
 from .expressions import Env, Expr, ExprError, Reader, parameter_target, read_name, read_value
 
-LETTERS = set("ABCDEFGHIJKLMNPQRSTUVWXYZ")
-NOT_EVALUATED = {"^": "polar coordinates are not supported",
-                 "@": "polar coordinates are not supported"}
+LETTERS = set("ABCDEFGHIJKLMNPQRSTUVWXYZ@^")  # @ ^: polar distance and angle
 # O-word keywords, longest first so that ENDSUB is not read as END...
 O_KEYWORDS = ("ENDREPEAT", "ENDWHILE", "CONTINUE", "ENDSUB", "ELSEIF", "REPEAT", "RETURN", "ENDIF", "BREAK",
               "WHILE", "ELSE", "CALL", "SUB", "IF", "DO")
@@ -49,7 +47,7 @@ class Block:
     where: str = ""  # "name.ngc: line 3" for a line of a subroutine file
 
     def has_axes(self) -> bool:
-        return any(k in self.words for k in "XYZ")
+        return any(k in self.words for k in "XYZ@^")
 
 
 def word_text(letter: str, value: float) -> str:
@@ -180,9 +178,6 @@ def read_line(text: str, line: int) -> Line | None:
     out = Line(line, comments=comments)
     if not code:
         return out if comments else None
-    for mark, why in NOT_EVALUATED.items():
-        if mark in code:
-            raise GcodeError(line, mark, why)
     if code.startswith("/"):
         raise GcodeError(line, "/", "block delete is not supported")
     r = Reader(code)

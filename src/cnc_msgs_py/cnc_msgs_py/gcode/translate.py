@@ -17,6 +17,7 @@ from .lathe import g71, g76
 from .lexer import Block, GcodeError, closed_by_percent, word_text
 from .modal import DRILL_CYCLES, MOTION, Modal, check_groups
 from .parameters import Parameters, whole
+from .polar import has_polar, polar_xy
 
 DIRECTIVE = "CNC,"  # our comments: (CNC,VIBRATION D=1.5 Q=1.2), (CNC,OVERLAP OFF), (CNC,MACHINE mill3)
 VIBRATION_KEYS = {"D": "D", "Q": "Q", "E": "E", "R": "R", "PHASE": "phase_shift", "DSTEP": "D_step"}
@@ -293,6 +294,8 @@ class Translator:
     def _target(self, b: Block, used: set[str]) -> dict[str, float]:
         """The new position (every known axis, mm), updating the state."""
         pos = self.state.position
+        if has_polar(b):
+            pos["x"], pos["y"] = polar_xy(self.state, b, used)
         for axis in AXES:
             if axis.upper() in b.words:
                 used.add(axis.upper())

@@ -123,6 +123,7 @@ def test_a_thread_cut_too_deep_or_off_its_flank_fails_the_thread_verdict():
     assert over["thread"]["verdict"]["says"].startswith("cut 0.01")
     assert "deeper than the thread's depth (limit 0.005 mm)" in over["thread"]["verdict"]["says"]
     assert failed_verdicts(over) == ["thread"]
+    assert "too deep" in render(over, [])
     run.feedback[:, x] = nominal[:, x] + 0.03e-3  # 30 um short
     short = build_report(run, machine)["thread"]["verdict"]
     assert short["passed"] is False and short["says"].startswith("depth 0.03"), short

@@ -1,5 +1,7 @@
-"""The drill figures: the tool path in X-Z with the air arcs between holes, and the
-S1/S2/S3 timing per hole on feedback."""
+"""The drill figures: the tool path in X-Z with the air arcs between holes, the S1/S2/S3
+timing per hole on feedback and, for a job of more holes than that timing shows, a map of
+every hole. A plate of 300 holes drew 300 holes' phases on top of one another (legible to
+no one, and 4 of the 8 s its figures took)."""
 from __future__ import annotations
 
 from types import SimpleNamespace
@@ -18,6 +20,8 @@ from cnc_planner.kinematics import Kinematics
 
 
 MOVING = 1e-4  # m/s: below this an axis counts as standing (end of the last retract)
+DETAIL_HOLES = 5  # holes the timing figure shows in detail: the first ones drilled
+LABELLED_HOLES = 20  # the X-Z figure names each hole up to this many
 
 
 PHASES = {"S1": ("S1  X/Y to hole", "tab:blue"), "S2": ("S2  Z down + feed", "tab:red"),
@@ -26,7 +30,11 @@ CAPTIONS = {  # figure file stem -> what the report page says under it
     "drill_xz": "Tool tip over the part: the air path from hole to hole on feedback, with the R plane, the "
                 "surface and the drilled depth; overlapping X and Z moves turn the R -> R' -> R path into an arc.",
     "drill_timing": "Phases per hole on feedback: S1 X/Y positioning, S2 Z approach and feed, S3 retract. Overlap "
-                    "shows as bars of one hole running side by side.",
+                    f"shows as bars of one hole running side by side. A job of more than {DETAIL_HOLES} holes shows "
+                    f"its first {DETAIL_HOLES}.",
+    "drill_map": "Every hole where it lies, coloured by its time (from the end of the previous hole's retract) and "
+                 "by the lowest the tip was above the R plane on the way to it while X/Y was off the hole by more "
+                 "than the tolerance, on feedback: below 0 would be X/Y motion below R.",
 }
 
 
@@ -54,8 +62,8 @@ def _drill_xz(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarr
     depth = surface - bottom
     ax.axhspan(bottom - 0.6 * depth, surface, color="tan", alpha=0.35, lw=0, label="workpiece")
     planes = np.array([cycle.planes(i) for i in range(len(holes_x))]) * MM  # surface, R, bottom per hole
-    for i, (hx, (top, _, low)) in enumerate(zip(holes_x, planes)):
-        ax.add_patch(Rectangle((hx - width / 2, low), width, top - low, color="white", ec="0.5", lw=0.6))
+    ax.bar(holes_x, planes[:, 0] - planes[:, 2], width, bottom=planes[:, 2], color="white", ec="0.5", lw=0.6)
+    for i, hx in enumerate(holes_x if len(holes_x) <= LABELLED_HOLES else []):
         ax.text(hx, bottom - 0.25 * depth, f"hole {cycle.order[i] if cycle.order else i}", ha="center", va="top",
                 fontsize=8)
     ax.plot(holes_x, planes[:, 2], "k^", ms=6, label=f"hole bottom z={bottom:.2f}" if np.ptp(planes[:, 2]) == 0
@@ -114,6 +122,18 @@ def _drill_timing(run: Run, job: SimpleNamespace, machine: Machine, window: np.n
     z_stop = t[moving[-1]] if len(moving) else t[-1]
     holes = report["drill"]["holes"]
     bars = _phase_bars(run, report["job_id"], holes, z_stop)
+    detail = ""
+    if len(holes) > DETAIL_HOLES:  # the first holes drilled, and the feedback until they are done
+        began: dict[int, float] = {}
+        for h, a, _ in (bar for spans in bars.values() for bar in spans):
+            began[h] = min(a, began.get(h, a))
+        shown = set(sorted(began, key=began.get)[:DETAIL_HOLES])
+        bars = {phase: [bar for bar in spans if bar[0] in shown] for phase, spans in bars.items()}
+        end = max((b for spans in bars.values() for _, _, b in spans), default=t[-1])
+        until = t <= end
+        t, fb, vel = t[until], fb[until], vel[until]
+        holes = [h for h in holes if h["index"] in shown]
+        detail = f": the first {len(shown)} of {len(report['drill']['holes'])} holes"
 
     fig, (pos, speed, chart) = plt.subplots(3, 1, figsize=(11, 8.2), sharex=True,
                                             gridspec_kw={"height_ratios": (3, 3, 2)})
@@ -131,7 +151,7 @@ def _drill_timing(run: Run, job: SimpleNamespace, machine: Machine, window: np.n
                 ax.axvspan(h["r_down_s"] - t0, h["r_up_s"] - t0, color="0.85", lw=0)
     pos.set_ylabel("position (mm)")
     speed.set_ylabel("velocity (mm/s)")
-    pos.set_title(f"{job.job_id}: overlapped drilling on feedback (grey: tip below R){recording_note(run)}",
+    pos.set_title(f"{job.job_id}: overlapped drilling on feedback{detail} (grey: tip below R){recording_note(run)}",
                   fontsize=11)
     for ax in (pos, speed):
         ax.grid(alpha=0.3)
@@ -153,10 +173,61 @@ def _drill_timing(run: Run, job: SimpleNamespace, machine: Machine, window: np.n
     return fig
 
 
+def _lowest_above_r(run: Run, cycle: DrillCycle, window: np.ndarray, holes: list[dict]) -> np.ndarray:
+    """Per hole of the report (mm): the lowest the tip was above its R plane on the way to
+    it while X/Y was still off the hole by more than the tolerance, on feedback, as the
+    judge (cnc_analysis.drilling) counts a violation: below 0 would be one; nan where X/Y
+    was on the hole all along."""
+    t, fb = run.feedback_t[window], run.feedback[window]
+    cx, cy, cz = run.column("x"), run.column("y"), run.column("z")
+    at = {(cycle.order[i] if cycle.order else i): i for i in range(len(cycle.holes))}  # job index -> drilled
+    down = sorted((h["r_down_s"], k) for k, h in enumerate(holes) if h["r_down_s"] is not None and h["index"] in at)
+    towards = np.searchsorted(np.array([d for d, _ in down]), t)  # the next hole the tip goes below R at
+    left = np.array([-np.inf] + [holes[k]["r_up_s"] or np.inf for _, k in down])  # the previous hole's R up
+    going = (towards < len(down)) & (t >= left[towards])
+    drilled = np.array([at[holes[k]["index"]] for _, k in down], dtype=int)
+    goal = np.array([cycle.holes[i] for i in drilled]).reshape(-1, 2)
+    r_z = np.array([cycle.planes(i)[1] for i in drilled])
+    to = towards[going]
+    off = np.hypot(fb[going, cx] - goal[to, 0], fb[going, cy] - goal[to, 1]) > cycle.xy_tolerance
+    lowest = np.full(len(down), np.inf)
+    np.minimum.at(lowest, to[off], fb[going, cz][off] - r_z[to[off]])
+    out = np.full(len(holes), np.nan)
+    out[[k for _, k in down]] = np.where(np.isfinite(lowest), lowest * MM, np.nan)
+    return out
+
+
+def _drill_map(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray, report: dict) -> plt.Figure:
+    """Every hole at its X/Y, coloured by its time and by its lowest height above R while X/Y moved."""
+    holes = report["drill"]["holes"]
+    x, y = np.array([h["x_mm"] for h in holes]), np.array([h["y_mm"] for h in holes])
+    times = np.array([h["cycle_time_s"] if h["cycle_time_s"] is not None else np.nan for h in holes])
+    lowest = _lowest_above_r(run, _cycle(run, job, machine, window), window, holes)
+    fig, axes = plt.subplots(2, 1, figsize=(11, 6.4), sharex=True)
+    for ax, values, label in ((axes[0], times, "time per hole (s)"),
+                              (axes[1], lowest, "lowest above R\nwhile X/Y off the hole (mm)")):
+        top = np.nanpercentile(values, 95) if np.isfinite(values).any() else None  # a first hole from far away
+        dots = ax.scatter(x, y, c=values, cmap="viridis", vmax=top, s=max(8.0, 3000.0 / len(holes)),
+                          edgecolors="none", plotnonfinite=True)
+        fig.colorbar(dots, ax=ax, label=label, pad=0.01)
+        ax.set_ylabel("Y (mm)")
+        ax.grid(alpha=0.3)
+    axes[1].set_xlabel("X (mm)")
+    axes[0].set_title(f"{job.job_id}: {len(holes)} holes on feedback; time per hole", fontsize=10)
+    axes[1].set_title(f"lowest tip above R while X/Y was off the hole: {np.nanmin(lowest):.2f} mm"
+                      if np.isfinite(lowest).any() else "X/Y was never off a hole below R+", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
 def draw(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray, report: dict) -> list[tuple]:
-    """The drill job's figures: (figure, file name) pairs."""
-    return [(_drill_xz(run, job, machine, window), "drill_xz.png"),
-            (_drill_timing(run, job, machine, window, report), "drill_timing.png")]
+    """The drill job's figures: (figure, file name) pairs; a map of every hole when the
+    timing figure shows only the first DETAIL_HOLES."""
+    figures = [(_drill_xz(run, job, machine, window), "drill_xz.png"),
+               (_drill_timing(run, job, machine, window, report), "drill_timing.png")]
+    if len(report["drill"]["holes"]) > DETAIL_HOLES:
+        figures.append((_drill_map(run, job, machine, window, report), "drill_map.png"))
+    return figures
 
 
 def first_hole_aircut(report: dict) -> dict | None:

@@ -19,4 +19,7 @@ setup(
                 "cycle time and following error, independent of the planner.",
     license="Apache-2.0",
     tests_require=["pytest"],
+    entry_points={"console_scripts": [
+        "cnc-identify = cnc_analysis.identify_cli:main",
+    ]},
 )

@@ -10,6 +10,10 @@ with the spindle off, a work offset (G55..) the job gives no values for. The fil
 installed, never copied; bench/results/linuxcnc_examples.json keeps each one's sha256,
 outcome and rs274's verdict, and test/test_gcode_examples.py checks the outcomes.
 
+Our own must-show programs (test/programs/*.ngc) go through rs274 -g with the machine's tool
+table (``-t``); its outputs are kept in bench/results/rs274_examples.json by each program's
+sha256, for the test to compare LinuxCNC's feed moves with our plan without LinuxCNC.
+
     apt-get install linuxcnc-uspace
     .venv/bin/python bench/peer/examples.py      # writes bench/results/linuxcnc_examples.json
 """
@@ -23,6 +27,8 @@ from pathlib import Path
 
 NCFILES = Path("/usr/share/linuxcnc/ncfiles")
 RESULTS = Path(__file__).resolve().parents[1] / "results" / "linuxcnc_examples.json"
+RS274_RECORDED = Path(__file__).resolve().parents[1] / "results" / "rs274_examples.json"
+MUST_SHOW = Path(__file__).resolve().parents[2] / "test" / "programs"
 LATHE = ("lathe", "g76.ngc", "threading.ngc")  # programs for a lathe (X/Z, G7/G18, threads)
 LEFT_OUT = {
     "gridprobe.ngc": "probing (G38.2)", "probe-hole.ngc": "probing (G38.x)", "smartprobe.ngc": "probing (G38.5)",
@@ -64,10 +70,9 @@ def ours(path: Path, machine: str) -> tuple[str, str]:
         return ("program" if any(k in text for k in PROGRAM_REASONS) else "language"), text
 
 
-def rs274_verdict(path: Path) -> str:
+def rs274_verdict(path: Path, machine: str) -> str:
     """'reads' when rs274 -g interprets the whole file, else its first error line."""
-    out = subprocess.run(["rs274", "-g", str(path)], capture_output=True, text=True, timeout=60)
-    errors = [ln for ln in (out.stdout + out.stderr).splitlines()
+    errors = [ln for ln in rs274(path, machine).splitlines()
               if ln.strip() and not ln.lstrip()[:1].isdigit() and not ln.startswith("executing")]
     return errors[0].strip() if errors else "reads"
 
@@ -83,11 +88,33 @@ def survey(folder: Path = NCFILES) -> dict:
         machine = machine_of(name)
         outcome, detail = ours(path, machine)
         rows[name] = {"sha256": sha, "machine": machine, "outcome": outcome, "detail": detail,
-                      "rs274": rs274_verdict(path)}
+                      "rs274": rs274_verdict(path, machine)}
     return rows
 
 
+def machine_table(machine: str) -> Path:
+    """The machine's own tool table (config/machines/<machine>.tbl), for rs274's ``-t``."""
+    from cnc_msgs_py.machine import machine_dirs
+    return next(d / f"{machine}.tbl" for d in machine_dirs() if (d / f"{machine}.tbl").is_file())
+
+
+def rs274(path: Path, machine: str) -> str:
+    """rs274 -g's output of a file with the machine's tool table, COMMENT lines left out."""
+    out = subprocess.run(["rs274", "-t", str(machine_table(machine)), "-g", str(path)],
+                         capture_output=True, text=True, timeout=60)
+    return "\n".join(ln for ln in (out.stdout + "\n" + out.stderr).splitlines() if " COMMENT(" not in ln)
+
+
+def record_must_show() -> dict[str, str]:
+    """rs274 -g's output of each program of test/programs/, by the program's sha256."""
+    import oracle  # bench/peer/oracle.py, beside this script
+    from cnc_msgs_py.gcode import machine_named
+    return {oracle._key(path.read_text()): rs274(path, machine_named(path.read_text()) or "mill3")
+            for path in sorted(MUST_SHOW.glob("*.ngc"))}
+
+
 def main() -> int:
+    RS274_RECORDED.write_text(json.dumps(record_must_show(), indent=0, sort_keys=True) + "\n")
     rows = survey()
     machining = [r for r in rows.values() if "outcome" in r]
     plans = sum(r["outcome"] == "plans" for r in machining)

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from rosbags.highlevel import AnyReader, AnyReaderError
+from rosbags.highlevel import AnyReaderError
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
@@ -21,6 +21,7 @@ from cnc_msgs_py.topics import PLANT_KEY
 from cnc_msgs_py.units import NS
 
 from cnc_analysis.cdr_arrays import joint_states, trajectory_chunks
+from cnc_analysis.mcap_scan import messages
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 
@@ -97,35 +98,34 @@ def read_run(bag: Path) -> Run:
     if not bag.exists():
         raise FileNotFoundError(f"no recording at {bag}")
     run = Run()
-    arrays: dict[str, list[bytes]] = {"joint_states": [], "joint_trajectory": []}  # read together below
+    arrays: dict[str, list[bytes | memoryview]] = {"joint_states": [], "joint_trajectory": []}  # read together below
     received: list[int] = []  # the chunks' bag times
     first: list[str] = []  # which of those two topics came first (its joint names are the run's)
+    types: dict[str, str] = {}
     try:
-        with AnyReader([bag], default_typestore=TYPESTORE) as reader:
-            types = {c.topic.rsplit("/", 1)[-1]: c.msgtype for c in reader.connections}
-            for conn, received_ns, raw in reader.messages(
-                    connections=[c for c in reader.connections if c.topic.rsplit("/", 1)[-1] != "clock"]):
-                topic = conn.topic.rsplit("/", 1)[-1]
-                if topic in arrays:
-                    arrays[topic].append(raw)
-                    first += [] if first else [topic]
-                    if topic == "joint_trajectory":
-                        received.append(received_ns)
-                    continue
-                msg = reader.deserialize(raw, conn.msgtype)
-                if topic == "job_goal":
-                    run.goals.append(msg.data)
-                elif topic == "job_status":
-                    run.statuses.append(json.loads(msg.data))
-                elif topic == "job_events":
-                    run.events.append(json.loads(msg.data))
-                elif topic == "diagnostics":
-                    run.alarms += [s.message for s in msg.status if s.level >= 2]
-                    run.plant = next((v.value for s in msg.status for v in s.values if v.key == PLANT_KEY), run.plant)
-            feedback = joint_states(arrays["joint_states"],
-                                    lambda raw: reader.deserialize(raw, types["joint_states"]))
-            chunks = trajectory_chunks(arrays["joint_trajectory"],
-                                       lambda raw: reader.deserialize(raw, types["joint_trajectory"]))
+        for topic, msgtype, received_ns, raw in messages(bag, skip={"clock"}):
+            topic = topic.rsplit("/", 1)[-1]
+            if topic in arrays:
+                arrays[topic].append(raw)
+                types[topic] = msgtype
+                first += [] if first else [topic]
+                if topic == "joint_trajectory":
+                    received.append(received_ns)
+                continue
+            msg = TYPESTORE.deserialize_cdr(bytes(raw), msgtype)
+            if topic == "job_goal":
+                run.goals.append(msg.data)
+            elif topic == "job_status":
+                run.statuses.append(json.loads(msg.data))
+            elif topic == "job_events":
+                run.events.append(json.loads(msg.data))
+            elif topic == "diagnostics":
+                run.alarms += [s.message for s in msg.status if s.level >= 2]
+                run.plant = next((v.value for s in msg.status for v in s.values if v.key == PLANT_KEY), run.plant)
+        feedback = joint_states(arrays["joint_states"],
+                                lambda raw: TYPESTORE.deserialize_cdr(bytes(raw), types["joint_states"]))
+        chunks = trajectory_chunks(arrays["joint_trajectory"],
+                                   lambda raw: TYPESTORE.deserialize_cdr(bytes(raw), types["joint_trajectory"]))
     except (OSError, KeyError, ValueError, AnyReaderError) as err:
         raise ValueError(f"cannot read recording {bag}: {err}") from err
     if first:

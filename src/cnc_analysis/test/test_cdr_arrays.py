@@ -99,3 +99,43 @@ def test_a_recording_reads_its_feedback_and_setpoints_in_its_joint_order(tmp_pat
     m = TYPESTORE.deserialize_cdr(chunk, TRAJECTORY)
     assert np.array_equal(run.command, [p.positions[::-1] for p in m.points])
     assert [(c.points, c.received_ns) for c in run.chunks] == [(20, 10**9 + 60)]
+
+
+def _write(path, plugin) -> list[tuple[str, int, bytes]]:
+    """A bag of interleaved topics, log times out of order and tied; what it holds."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    topics = {"/cnc/joint_states": STATE, "/cnc/job_events": RECORDED["job_events"], "/clock": RECORDED["/clock"]}
+    writer = Writer(path, version=9, storage_plugin=getattr(StoragePlugin, plugin))
+    writer.open()
+    connections = {t: writer.add_connection(t, m, typestore=TYPESTORE) for t, m in topics.items()}
+    event = T["std_msgs/msg/String"](data='{"name": "S1"}')
+    written = []
+    for i, log_time in enumerate([5, 3, 3, 9, 1, 7, 7, 2]):
+        topic = ("/cnc/joint_states", "/cnc/job_events", "/clock")[i % 3]
+        raw = (_state(log_time, ["x"]) if topic == "/cnc/joint_states" else
+               bytes(TYPESTORE.serialize_cdr(event, RECORDED["job_events"])) if topic == "/cnc/job_events" else
+               bytes(TYPESTORE.serialize_cdr(T["rosgraph_msgs/msg/Clock"](clock=_stamp(log_time)), RECORDED["/clock"])))
+        writer.write(connections[topic], log_time, raw)
+        written.append((topic, log_time, raw))
+    writer.close()
+    return written
+
+
+def test_one_pass_over_the_mcap_gives_what_rosbags_gives_and_other_bags_go_to_rosbags(tmp_path, monkeypatch):
+    from cnc_analysis import mcap_scan
+    from cnc_analysis.mcap_scan import messages
+
+    rosbags_reader = mcap_scan.AnyReader
+    for plugin in ("MCAP", "SQLITE3"):  # the recorder's own format, scanned; another, read by rosbags
+        def only_sqlite(paths, plugin=plugin):
+            assert plugin == "SQLITE3", "the MCAP file was not scanned"
+            return rosbags_reader(paths)
+        monkeypatch.setattr(mcap_scan, "AnyReader", only_sqlite)
+        written = _write(tmp_path / plugin, plugin)
+        expected = sorted(((t, n, raw) for t, n, raw in written if t != "/clock"), key=lambda m: m[1])  # stable
+        got = [(topic, log_time, bytes(raw)) for topic, _, log_time, raw in messages(tmp_path / plugin, {"clock"})]
+        assert got == expected
+        types = {topic: msgtype for topic, msgtype, _, _ in messages(tmp_path / plugin)}
+        assert types == {"/cnc/joint_states": STATE, "/cnc/job_events": RECORDED["job_events"],
+                         "/clock": RECORDED["/clock"]}

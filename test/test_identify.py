@@ -3,16 +3,33 @@ as a servo tuning routine does, and `cnc-identify` on a bag of it, run on a plan
 the description, writes a description that loads, holds the plant's drive and plans."""
 from __future__ import annotations
 
+import dataclasses
+from functools import lru_cache
+
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
+from cnc_analysis.identify import Trace, identify
 from cnc_msgs_py.job import load_job_file, parse_job
 from cnc_msgs_py.machine import LAYOUTS, load_machine
 from cnc_planner.planning import plan_job
+from cnc_servo_bridge.drive import DriveModel
 
 from support import JOBS, ROOT, cnc
 
 CREEP = 1e-3  # m/s: under this an axis creeps, where Coulomb friction shows
+PERIOD = 1e-3
+
+
+@lru_cache(maxsize=None)
+def planned(layout: str) -> tuple:
+    """A layout's calibration job planned offline and sampled every servo period from rest."""
+    job = parse_job(load_job_file(JOBS / f"identify_{layout}.yaml"))
+    machine = load_machine(job.machine)
+    plan = plan_job(job, machine)
+    return machine, plan.joints, plan.sample(np.arange(-0.05, plan.duration + 0.2, PERIOD).clip(0.0))
 
 
 @pytest.mark.parametrize("layout", LAYOUTS)
@@ -29,6 +46,27 @@ def test_calibration_job_excites_every_linear_axis(layout):
         assert speed.max() > 0.5 * top and speed.min() < -0.5 * top, axis  # rapids both ways
         creeping = (np.abs(speed) > 1e-5) & (np.abs(speed) < CREEP)
         assert np.sum(creeping & (speed > 0)) > 200 and np.sum(creeping & (speed < 0)) > 200, axis
+
+
+@settings(max_examples=8, deadline=None)
+@given(kp=st.floats(0.6, 1.4), lag=st.floats(1.0, 3.0), ff=st.floats(0.9, 1.0), delay=st.integers(0, 3),
+       noise=st.floats(0.0, 2e-7), seed=st.integers(0, 100))
+def test_drawn_lathe_plants_are_identified_from_the_planned_calibration_job(kp, lag, ff, delay, noise, seed):
+    """Plants inside and somewhat beyond the default tolerance, on the lathe's calibration job
+    as the planner samples it: kp and velocity_lag within 5 %, the delay exact."""
+    machine, joints, reference = planned("lathe")
+    plant = {j: dataclasses.replace(d, kp=d.kp * kp, velocity_lag=d.velocity_lag * lag, velocity_ff=ff,
+                                    delay=delay * PERIOD, noise=noise)
+             for j, d in machine.drives.items() if j in machine.linear_axes}
+    feedback = DriveModel(machine, PERIOD, joints, drives={**machine.drives, **plant}, seed=seed).simulate(*reference)
+    fits = identify([Trace.of(PERIOD, joints, reference, feedback)], machine)
+    for joint, drive in plant.items():
+        fitted = fits[joint].drive
+        assert fitted is not None, fits[joint].note
+        assert fitted.kp == pytest.approx(drive.kp, rel=0.05)
+        assert fitted.velocity_lag == pytest.approx(drive.velocity_lag, rel=0.05)
+        assert fitted.delay == pytest.approx(drive.delay, abs=1e-12)
+        assert fitted.velocity_ff == pytest.approx(ff, abs=0.01)
 
 
 def test_identify_recovers_the_slow_loop_and_plans_with_it(tmp_path, monkeypatch):

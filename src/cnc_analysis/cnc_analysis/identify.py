@@ -70,6 +70,18 @@ class Trace:
     y: np.ndarray
     w: np.ndarray
 
+    @classmethod
+    def of(cls, period: float, joints: tuple[str, ...], reference: tuple[np.ndarray, ...], feedback: tuple[np.ndarray, ...],
+           name: str = "") -> Trace:
+        """A trace from arrays: references (p, v, a; rows of joints every servo period, from
+        rest) and the feedback at the same stamps (y, w), as DriveModel.simulate gives them for
+        a plan sampled offline; the history before the first row is that row at rest."""
+        p, v, a = (np.asarray(x, dtype=float) for x in reference)
+        rest = np.zeros((MAX_DELAY_PERIODS, p.shape[1]))
+        return cls(name, period, joints, np.concatenate((np.tile(p[0], (MAX_DELAY_PERIODS, 1)), p)),
+                   np.concatenate((rest, v)), np.concatenate((rest, a)), np.ones(len(p) + MAX_DELAY_PERIODS, dtype=bool),
+                   *(np.asarray(x, dtype=float) for x in feedback))
+
 
 @dataclass(frozen=True)
 class AxisFit:

@@ -10,7 +10,7 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from cnc_analysis.identify import MAX_DELAY_PERIODS, Trace, identify, reference
+from cnc_analysis.identify import Trace, identify, reference
 from cnc_msgs_py.machine import load_machine
 from cnc_servo_bridge.drive import DriveModel
 from cnc_servo_bridge.setpoints import SetpointBuffer, Setpoints
@@ -47,14 +47,8 @@ def recorded(drives: dict, seed: int = 0) -> Trace:
     joints = ("x", "y", "z")
     p, v, a = (np.column_stack([x] * 3) for x in excitation())
     p = p + np.array(MILL.home_position[:3])
-    y, w = DriveModel(MILL, PERIOD, joints, drives={**MILL.drives, **drives}, seed=seed).simulate(p, v, a)
-    history = MAX_DELAY_PERIODS
-
-    def held(x: np.ndarray, rest: bool) -> np.ndarray:
-        return np.concatenate((np.zeros((history, 3)) if rest else np.tile(x[0], (history, 1)), x))
-
-    return Trace("synthetic", PERIOD, joints, held(p, False), held(v, True), held(a, True),
-                 np.ones(len(p) + history, dtype=bool), y, w)
+    feedback = DriveModel(MILL, PERIOD, joints, drives={**MILL.drives, **drives}, seed=seed).simulate(p, v, a)
+    return Trace.of(PERIOD, joints, (p, v, a), feedback, "synthetic")
 
 
 def test_reference_is_what_the_bridge_sampled():

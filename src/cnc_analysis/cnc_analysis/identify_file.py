@@ -151,4 +151,6 @@ def table(machine: Machine, fits: dict[str, AxisFit]) -> str:
         rows.append(f"{'':<5} {'residual max um':<17} {d_max:>12.3f} {f_max:>12.3f}")
         rows.append(f"{'':<5} {'residual RMS um':<17} {d_rms:>12.3f} {f_rms:>12.3f}")
         rows.append(f"{'':<5} {'servo periods':<17} {'':>12} {fit.samples:>12d}")
+    if any(machine.axes[j].type != "linear" for j in fits):
+        rows.append("rotary axes in rad: mm read mrad, um read urad")
     return "\n".join(rows)

@@ -181,12 +181,12 @@ def _solve(x: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, float, np.nda
     and the coefficients' standard errors."""
     scale = np.sqrt(np.mean(x * x, axis=0))
     scale[scale == 0.0] = 1.0
-    theta, _, rank, _ = np.linalg.lstsq(x / scale, target, rcond=None)
-    residual = target - (x / scale) @ theta
+    xs = x / scale
+    theta, _, rank, _ = np.linalg.lstsq(xs, target, rcond=None)
+    residual = target - xs @ theta
     rss = float(residual @ residual)
     if rank < x.shape[1]:
         return theta / scale, rss, np.full(x.shape[1], np.inf)
-    xs = x / scale
     dof = max(len(target) - x.shape[1], 1)
     cov = np.linalg.inv(xs.T @ xs) * rss / dof
     return theta / scale, rss, np.sqrt(np.maximum(np.diag(cov), 0.0)) / scale

@@ -147,6 +147,8 @@ def table(machine: Machine, fits: dict[str, AxisFit]) -> str:
             if key == "backlash" and not fit.backlash_identified:
                 shown = f"{'not seen':>12}"
             rows.append(f"{joint if i == 0 else '':<5} {label:<17} {getattr(described, key) * scale:>12.6g} {shown}")
+        if fit.backlash_identified:
+            rows.append(f"{'':<5} {'encoder noise um':<17} {'':>12} {fit.noise * 1e6:>12.3g}")
         (d_max, d_rms), (f_max, f_rms) = fit.residual_described, fit.residual_fitted
         rows.append(f"{'':<5} {'residual max um':<17} {d_max:>12.3f} {f_max:>12.3f}")
         rows.append(f"{'':<5} {'residual RMS um':<17} {d_rms:>12.3f} {f_rms:>12.3f}")

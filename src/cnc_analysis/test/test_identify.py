@@ -107,6 +107,7 @@ def test_friction_and_backlash_are_found_where_the_plant_has_them():
         fitted = fits[joint].drive
         assert abs(fitted.friction / 3e-4 - 1) < 0.05
         assert abs(fitted.backlash / 4e-6 - 1) < 0.1
+        assert abs(fits[joint].noise / 1e-7 - 1) < 0.2
         assert abs(fitted.kp / 50.0 - 1) < 0.05 and abs(fitted.velocity_lag / 1e-3 - 1) < 0.05
         assert fits[joint].residual_fitted[1] < fits[joint].residual_described[1]
         assert fitted.tolerance.friction == 3e-5 and fitted.tolerance.backlash > 0

@@ -32,6 +32,7 @@ import numpy as np
 
 from cnc_msgs_py.machine import SPINDLE, Drive, Machine, Tolerance
 from cnc_servo_bridge.drive import ACCELERATION_HEADROOM, VELOCITY_HEADROOM, DriveModel
+from cnc_servo_bridge.setpoints import SetpointBuffer
 
 from .recording import Run
 
@@ -132,8 +133,12 @@ def reference(command_t_ns: np.ndarray, command: tuple[np.ndarray, ...], chunk_s
     return p, v, a, known
 
 
-def trace(run: Run, name: str = "") -> Trace:
-    """A recorded run on its servo grid (the spindle included; fits leave it out)."""
+def trace(run: Run, machine: Machine, name: str = "") -> Trace:
+    """A recorded run on its servo grid (the spindle included; fits leave it out), known up
+    to its first alarm: from there the bridge stopped the axes on a reference of its own
+    that no recorded setpoint holds (a following error beyond the machine's limit or an
+    encoder outside the travel, judged on the recording as the bridge judges them, or a job
+    aborted, whichever comes first)."""
     period = servo_period(run)
     period_ns = round(period * 1e9)
     stamps = np.round(run.feedback_t * 1e9).astype(np.int64)
@@ -151,6 +156,18 @@ def trace(run: Run, name: str = "") -> Trace:
     on_grid = (stamps - first) % period_ns == 0
     y[index[on_grid]] = run.feedback[on_grid]
     w[index[on_grid]] = run.feedback_velocity[on_grid]
+    limit = np.array([machine.drives[j].following_error_limit for j in run.joints])
+    encoders = np.full((n, len(machine.joint_names)), np.nan)  # the machine's joints, as recorded
+    for i, joint in enumerate(machine.joint_names):
+        if joint in run.joints:
+            encoders[:, i] = y[:, run.joints.index(joint)]
+    with np.errstate(invalid="ignore"):
+        tripped = np.flatnonzero(np.any(np.abs(p[MAX_DELAY_PERIODS:] - y) > limit, axis=1)
+                                 | np.any(SetpointBuffer(machine).outside_travel(encoders), axis=1))
+    aborted = [s["stamp_ns"] for s in run.statuses if s.get("state") == "aborted" and "stamp_ns" in s]
+    alarm = min(([int(grid[MAX_DELAY_PERIODS + tripped[0]])] if len(tripped) else []) + aborted, default=None)
+    if alarm is not None:
+        known[grid >= alarm] = False
     return Trace(name, period, tuple(run.joints), p, v, a, known, y, w)
 
 
@@ -214,17 +231,17 @@ def fit_axis(traces: list[Trace], machine: Machine, joint: str) -> AxisFit:
     x, target = stacked(delay, masks)
     keep = np.ones(len(target), dtype=bool)
     used = np.arange(5)
-    for _ in range(2):  # leave out clamped commands and gross outliers (a stop), once each
+    for _ in range(3):  # leave out gross outliers (a stop no alarm marked) and clamped commands
         theta, _, err = _solve(x[keep][:, used], target[keep])
         full = np.zeros(5)
         full[used] = theta
         decay = full[0]
-        if not 0.0 < decay < 1.0:
-            return AxisFit(joint, None, count, f"no first-order velocity loop fits (decay {decay:.3g})")
-        v_command = (x[:, 1:4] @ full[1:4]) / (1.0 - decay)
         residual = target - x @ full
         spread = 1.4826 * np.median(np.abs(residual[keep])) + 1e-12 * np.sqrt(np.mean(target * target))
-        keep &= (np.abs(v_command) < CLAMP_MARGIN * v_limit) & (np.abs(residual) <= OUTLIER * spread)
+        keep &= np.abs(residual) <= OUTLIER * spread
+        if not 0.0 < decay < 1.0:  # the outliers' fit: what is left decides
+            continue
+        keep &= np.abs(x[:, 1:4] @ full[1:4]) < CLAMP_MARGIN * v_limit * (1.0 - decay)
         f_index = int(np.flatnonzero(used == 4)[0]) if 4 in used else None
         if f_index is not None:
             friction = theta[f_index] / (1.0 - decay)
@@ -236,7 +253,8 @@ def fit_axis(traces: list[Trace], machine: Machine, joint: str) -> AxisFit:
     full[used] = theta
     decay = full[0]
     if not 0.0 < decay < 1.0 or full[3] <= 0.0:
-        return AxisFit(joint, None, int(keep.sum()), "the recording gives no positive gain and stable loop")
+        return AxisFit(joint, None, int(keep.sum()), f"no stable first-order velocity loop with a positive gain "
+                                                     f"fits (decay {decay:.3g}, kp term {full[3]:.3g})")
     gain = 1.0 - decay
     lag = -period / np.log(decay)
     accel_ff = full[2] / (gain * lag) if np.any(x[:, 2] != 0.0) else described.accel_ff
@@ -294,6 +312,7 @@ def _backlash(traces: list[Trace], columns: list[int], resolution: float) -> tup
         return None, 0.0
     deviation = 1.4826 * float(np.median(np.abs(np.concatenate(spreads))))
     noise = float(np.sqrt(max(deviation ** 2 - resolution ** 2 / 12.0, 0.0)))
+    noise = noise if noise > 0.5 * resolution else 0.0  # below that: the quantisation's own spread
     backlash = weighted / weight
     return (backlash if backlash > BACKLASH_RESOLUTIONS * resolution else 0.0), noise
 

@@ -79,7 +79,7 @@ def identify_bags(bags: list[Path]) -> Identified:
     name = machines.pop()
     source = description_file(name)
     machine = load_machine(str(source))
-    traces = [trace(run, str(bag)) for bag, run in zip(bags, runs)]
+    traces = [trace(run, machine, str(bag)) for bag, run in zip(bags, runs)]
     return Identified(machine, source, traces, recorded, identify(traces, machine))
 
 

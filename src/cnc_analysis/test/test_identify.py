@@ -7,10 +7,12 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from cnc_analysis.identify import Trace, identify, reference
+from cnc_analysis.identify import MAX_DELAY_PERIODS, Trace, identify, reference, trace
+from cnc_analysis.recording import Chunk, Run
 from cnc_msgs_py.machine import load_machine
 from cnc_servo_bridge.drive import DriveModel
 from cnc_servo_bridge.setpoints import SetpointBuffer, Setpoints
@@ -32,7 +34,7 @@ def excitation() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """What a calibration job does to one axis (m): short and long moves both ways, a creep
     and a medium feed, a pause after each so the loop settles."""
     p, v, a, at = [np.zeros(50)], [np.zeros(50)], [np.zeros(50)], 0.0
-    for distance, duration in ((0.001, 0.06), (-0.001, 0.06), (0.2, 0.6), (-0.2, 0.6), (0.0005, 0.8),
+    for distance, duration in ((0.001, 0.06), (-0.001, 0.06), (-0.2, 0.6), (0.2, 0.6), (0.0005, 0.8),
                                (-0.0005, 0.8), (0.015, 0.4), (-0.015, 0.4)):
         dp, dv, da = _move(distance, duration)
         p += [at + dp, np.full(100, at + distance)]
@@ -119,3 +121,33 @@ def test_an_axis_that_never_moves_keeps_its_description():
     fits = identify([trace], MILL)
     assert fits["y"].drive is None and "not excited" in fits["y"].note
     assert fits["x"].drive is not None
+
+
+def test_a_recording_is_used_up_to_its_alarm():
+    """A following error trips the bridge's alarm: from there it stops the axes on a reference
+    of its own while the recorded setpoints go on. The trace ends at the trip, judged on the
+    recording as the bridge judges it, and the fit is the plant's all the same."""
+    slow = {j: dataclasses.replace(MILL.drives[j], velocity_lag=0.003, delay=0.002) for j in ("x", "y", "z")}
+    synthetic = recorded(slow)
+    rows = slice(MAX_DELAY_PERIODS, None)
+    error = np.abs(synthetic.p[rows, 0] - synthetic.y[:, 0])
+    limit = 0.8 * error.max()
+    machine = dataclasses.replace(MILL, drives={**MILL.drives, "x": dataclasses.replace(
+        MILL.drives["x"], following_error_limit=limit)})
+    alarm = int(np.argmax(error > limit))
+    y, w = synthetic.y.copy(), synthetic.w.copy()
+    w[alarm + 1:] = w[alarm] * 0.97 ** np.arange(1, len(w) - alarm)[:, None]  # the bridge's own stop
+    y[alarm + 1:] = y[alarm] + np.cumsum(w[alarm + 1:], axis=0) * PERIOD
+    stamps = np.arange(len(y), dtype=np.int64) * MS
+    run = Run(joints=("x", "y", "z"), feedback_t=stamps / 1e9, feedback=y, feedback_velocity=w,
+              command_t=stamps / 1e9, command=synthetic.p[rows], command_velocity=synthetic.v[rows],
+              command_acceleration=synthetic.a[rows], chunks=[Chunk(0, int(stamps[-1]), len(stamps), False)],
+              statuses=[{"state": "aborted", "stamp_ns": (alarm + 30) * MS}])
+    cut = trace(run, machine)
+    assert cut.known[rows][:alarm].all() and not cut.known[rows][alarm:].any()
+    fits = identify([cut], machine)
+    for joint in slow:
+        assert fits[joint].drive is not None, fits[joint].note
+        assert fits[joint].drive.velocity_lag == pytest.approx(0.003, rel=1e-3)
+        assert fits[joint].drive.delay == pytest.approx(0.002, abs=1e-12)
+        assert fits[joint].residual_fitted[0] < 0.25

@@ -15,7 +15,7 @@ import pytest
 from hypothesis import HealthCheck, Phase, given, settings
 
 from cnc_msgs_py.job import load_job_file, parse_job
-from cnc_msgs_py.machine import Machine, load_machine
+from cnc_msgs_py.machine import Machine, Tolerance, load_machine
 from cnc_msgs_py.schema import JobError
 from cnc_planner.planning import INTERNAL, plan_job
 from cnc_planner.motion import SERVO_PERIOD
@@ -100,16 +100,24 @@ def test_pecked_and_dwelled_holes_reach_depth_on_any_machine(variant):
 
 
 def test_a_drive_too_slow_for_the_overlap_is_refused_by_name_and_drills_conventionally():
-    """A drawn Z drive (8.2 ms velocity lag) on which no overlapped G83 timing keeps X/Y on
-    the hole below R: the job is refused up front, naming drill.overlap and the drive, not
-    an internal error; with overlap: off the same holes plan within the bridge's limits."""
+    """A drawn Z drive (8.2 ms velocity lag, 62 % velocity feed-forward). Inside the default
+    tolerance its bottom may overshoot 0.4 mm, more material than the planner leaves: the
+    job is refused naming the drive's tolerance. Identified (a tolerance of a few percent), no
+    overlapped G83 timing keeps X/Y on the hole below R: refused naming drill.overlap and the
+    drive, not an internal error; with overlap: off the same holes plan within the bridge's
+    limits."""
     base = load_machine("mill3")
     axes = {**base.axes, "z": dataclasses.replace(base.axes["z"], max_jerk=6.1e5)}
-    drives = {**base.drives, "z": dataclasses.replace(base.drives["z"], kp=135.9, velocity_ff=0.62, accel_ff=0.30,
-                                                      velocity_lag=8.2e-3)}
-    machine = dataclasses.replace(base, name="mill3_drawn", axes=axes, drives=drives)
+    slow = dataclasses.replace(base.drives["z"], kp=135.9, velocity_ff=0.62, accel_ff=0.30, velocity_lag=8.2e-3)
+    machine = dataclasses.replace(base, name="mill3_drawn", axes=axes, drives={**base.drives, "z": slow})
     doc = {**load_job_file(JOBS / EXAMPLES["drill"]), "machine": machine.name}
     doc["drill"] = {**doc["drill"], "peck": {"depth": 2.0}}
+    with pytest.raises(JobError) as refused:
+        plan_job(parse_job(doc), machine)
+    assert refused.value.field == "drill" and "narrow drive.z.tolerance" in refused.value.reason
+    identified = Tolerance(kp=(0.95, 1.05), velocity_ff=(0.99, 1.0), accel_ff=(0.99, 1.0), velocity_lag=(0.95, 1.05),
+                           delay=(0.0, 0.0))
+    machine = dataclasses.replace(machine, drives={**machine.drives, "z": dataclasses.replace(slow, tolerance=identified)})
     with pytest.raises(JobError) as refused:
         plan_job(parse_job(doc), machine)
     assert refused.value.field == "drill.overlap" and INTERNAL not in refused.value.reason

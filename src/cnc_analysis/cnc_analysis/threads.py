@@ -39,6 +39,10 @@ CUT_TOLERANCE = 0.5e-6  # m: deeper than the envelope by more than this is cutti
 CUTTING_PASS = 0.05e-3  # m: a pass whose depth of cut exceeds this must break its chips
 DEPTH_TOLERANCE = 0.02e-3  # m: full depth reached and never exceeded within this
 FLANK_TOLERANCE = DEPTH_TOLERANCE  # m: the tool's axial distance from its flank line, held as the depth
+# m: a thread short of its depth by more than this fails. The planner raises the passes by
+# the overcut of the deepest drive inside the tolerance (22 um on the soft lathe); a 6g
+# M12x1.75's pitch diameter is toleranced 150 um wide.
+SHORT_LIMIT = 0.05e-3
 POINTS_PER_REV = 720  # groove grid: 0.5 deg of helix
 SYNC_TOLERANCE = 0.02  # share of the lead: g advancing at lead/rev within this is synchronised
 SYNC_WINDOW = 0.1  # rad of spindle over which the lead per revolution is measured
@@ -345,17 +349,17 @@ def analyze_thread(
 
 def thread_failures(figures: dict, vibrated: bool) -> list[str]:
     """What fails a thread judged by analyze_thread: cut deeper than its depth by more than
-    OVERCUT_LIMIT, short of it by more than DEPTH_TOLERANCE (where nothing is over it by
-    that much), the tool off its flank line (the helix residual) by more than
+    OVERCUT_LIMIT, short of it by more than SHORT_LIMIT (where nothing is over it by
+    DEPTH_TOLERANCE), the tool off its flank line (the helix residual) by more than
     FLANK_TOLERANCE and, for a vibrated thread, a cutting pass's chip longer than
     CHIP_LIMIT_REVS. One phrase per miss."""
     failures = []
     if figures["overcut_mm"] > to_mm(OVERCUT_LIMIT):
         failures.append(f"cut {figures['overcut_mm']:.4f} mm deeper than the thread's depth "
                         f"(limit {to_mm(OVERCUT_LIMIT):g} mm)")
-    if figures["depth_error_mm"] > to_mm(DEPTH_TOLERANCE) and figures["overcut_mm"] <= to_mm(DEPTH_TOLERANCE):
+    if figures["depth_error_mm"] > to_mm(SHORT_LIMIT) and figures["overcut_mm"] <= to_mm(DEPTH_TOLERANCE):
         failures.append(f"depth {figures['depth_error_mm']:.4f} mm short of the thread's depth "
-                        f"(limit {to_mm(DEPTH_TOLERANCE):g} mm)")
+                        f"(limit {to_mm(SHORT_LIMIT):g} mm)")
     if figures["helix_residual_mm"] > to_mm(FLANK_TOLERANCE):
         failures.append(f"the tool left its flank line by {figures['helix_residual_mm']:.4f} mm "
                         f"(limit {to_mm(FLANK_TOLERANCE):g} mm)")

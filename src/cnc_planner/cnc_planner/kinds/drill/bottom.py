@@ -31,6 +31,8 @@ from cnc_planner.motion.moves import RuckigMove
 BOTTOM_ROUNDS = 6  # drive-model rounds placing the Z command's turning point at a hole's bottom
 BOTTOM_PHASES = 4  # offsets of a stroke against the servo grid that its turning point is aimed over
 BOTTOM_STEADY_S = 0.3  # s of steady feed before R in those rounds: the drive settles into it
+LEFT_MATERIAL_LIMIT = 0.2e-3  # m: the most a bottom may rise for the tolerance (ISO 2768-m's
+# +-0.2 mm of a 6-30 mm depth); a wider tolerance refuses the job rather than drill short
 
 
 def reference(cycle: DrillCycle, start: float, lead_in: tuple[RuckigMove, ...], stroke: RuckigMove,
@@ -159,4 +161,11 @@ class Bottoms:
             drive = DriveModel(self.machine, period, ("z",), drives={"z": corner})
             drive.reset(p[:1])
             deepest = min(deepest, float(np.min(drive.run(p[:, None], v[:, None], a[:, None])[0][k0:, 0])))
+        if bottom - deepest > LEFT_MATERIAL_LIMIT:
+            z = self.machine.drives["z"].tolerance
+            raise DrillError("drill", f"a Z drive inside its tolerance (kp x{z.kp[0]:g}-{z.kp[1]:g}, velocity_lag "
+                                      f"x{z.velocity_lag[0]:g}-{z.velocity_lag[1]:g}, delay {z.delay[0] * 1e3:g}-"
+                                      f"{z.delay[1] * 1e3:g} ms) overshoots the bottom by {(bottom - deepest) * 1e3:.3f} mm: "
+                                      f"leaving that much material is more than {LEFT_MATERIAL_LIMIT * 1e3:g} mm; "
+                                      "narrow drive.z.tolerance (cnc-identify), or dwell at the bottom")
         return bottom - deepest

@@ -109,23 +109,26 @@ class ServoLag:
         """Move each gap by whole servo periods until the feedback is safe with no slack left.
 
         With rounds=1 it returns after one correction, to learn the lag margins. A gap that
-        once had to grow is never shrunk again, so the search cannot oscillate; no gap goes
-        below its floor, where the commands themselves stop being safe.
+        has moved once (grown, or shrunk by its slack) is never shrunk again, so the search
+        cannot oscillate nor creep; no gap goes below its floor, where the commands
+        themselves stop being safe.
         """
         period = self.cycle.servo_period
         full = np.full(self.n, self.z.rapid.acceleration)
-        grew_down = np.zeros(self.n, bool)
-        grew_up = np.zeros(self.n, bool)
+        moved_down = np.zeros(self.n, bool)
+        moved_up = np.zeros(self.n, bool)
         for _ in range(rounds):
             down, up = self.margins(emit, t0, e_down, e_up, full)
             up = np.roll(up, 1)  # hole i's exit constrains the start of S1 for hole i+1
             up[0] = 0.0
-            grew_down |= down > 0
-            grew_up |= up > 0
-            new_down = np.where(grew_down & (down <= 0), e_down, np.maximum(e_down + down * period, floor_down))
-            new_up = np.where(grew_up & (up <= 0), e_up, np.maximum(e_up + up * period, floor_up))
+            # A gap that has moved keeps its slack: where the lag margin does not follow the
+            # gap (another constraint binds), taking the same slack again would never end.
+            new_down = np.where(moved_down & (down <= 0), e_down, np.maximum(e_down + down * period, floor_down))
+            new_up = np.where(moved_up & (up <= 0), e_up, np.maximum(e_up + up * period, floor_up))
             if np.all(down <= 0) and np.all(up <= 0) and np.allclose(new_down, e_down) and np.allclose(new_up, e_up):
                 return e_down, e_up
+            moved_down |= ~np.isclose(new_down, e_down)
+            moved_up |= ~np.isclose(new_up, e_up)
             e_down, e_up = new_down, new_up
         if rounds > 1:
             drive = self.machine.drives["z"]

@@ -13,7 +13,7 @@ from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_msgs_py.units import to_mm
 
 from cnc_analysis.recording import Run
-from cnc_analysis.threads import CHIP_LIMIT_REVS, DEPTH_TOLERANCE, FLANK_TOLERANCE, analyze_thread, thread_failures
+from cnc_analysis.threads import CHIP_LIMIT_REVS, FLANK_TOLERANCE, SHORT_LIMIT, analyze_thread, thread_failures
 from cnc_analysis.verdict import OVERCUT_LIMIT, verdict
 
 from cnc_planner.kinematics import Kinematics
@@ -51,6 +51,6 @@ def thread_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.
 def criterion(vibrated: bool) -> str:
     """What the thread's verdict holds its feedback to."""
     return (f"on feedback: no deeper than the depth by more than {to_mm(OVERCUT_LIMIT):g} mm, no shallower by "
-            f"more than {to_mm(DEPTH_TOLERANCE):g} mm; the tool within "
+            f"more than {to_mm(SHORT_LIMIT):g} mm; the tool within "
             f"{to_mm(FLANK_TOLERANCE):g} mm of its flank line (helix residual)"
             + (f"; every cutting pass's chip within {CHIP_LIMIT_REVS:g} revolution" if vibrated else ""))

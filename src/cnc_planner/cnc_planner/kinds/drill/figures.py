@@ -7,6 +7,7 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import numpy as np
+from matplotlib.collections import PolyCollection
 from matplotlib.patches import Rectangle
 
 from cnc_msgs_py.machine import Machine
@@ -62,7 +63,9 @@ def _drill_xz(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarr
     depth = surface - bottom
     ax.axhspan(bottom - 0.6 * depth, surface, color="tan", alpha=0.35, lw=0, label="workpiece")
     planes = np.array([cycle.planes(i) for i in range(len(holes_x))]) * MM  # surface, R, bottom per hole
-    ax.bar(holes_x, planes[:, 0] - planes[:, 2], width, bottom=planes[:, 2], color="white", ec="0.5", lw=0.6)
+    left, right, low, top = holes_x - width / 2, holes_x + width / 2, planes[:, 2], planes[:, 0]
+    corners = np.stack([np.column_stack(c) for c in ((left, low), (right, low), (right, top), (left, top))], axis=1)
+    ax.add_collection(PolyCollection(corners, facecolors="white", edgecolors="0.5", linewidths=0.6))  # one artist
     for i, hx in enumerate(holes_x if len(holes_x) <= LABELLED_HOLES else []):
         ax.text(hx, bottom - 0.25 * depth, f"hole {cycle.order[i] if cycle.order else i}", ha="center", va="top",
                 fontsize=8)

@@ -264,3 +264,14 @@ def test_polar_words_about_the_origin():
     assert (after[1]["x"], after[1]["y"]) == pytest.approx((-25.4, 0.0))
     with pytest.raises(GcodeError, match=r"^line 2: @: polar words cannot share a line with X or Y"):
         ops("G21 G90 G17\nG0 X1 @2\nM2", start={"x": 0.0, "y": 0.0})
+
+
+def test_arcs_in_the_yz_plane():
+    """G19: arcs in Y and Z by J and K, clockwise as seen from +X (LinuxCNC's 3dtest.ngc
+    draws its YZ circle so)."""
+    text = "G21 G90 G19\nG0 X5 Y0 Z0\nG2 Y2 Z0 J1 K0 F100\nM2"
+    points = [m["linear"] for m in moves(text)[1:]]
+    assert all(p["x"] == 5.0 for p in points) and points[-1] == {"x": 5.0, "y": 2.0, "z": 0.0}
+    top = max(points, key=lambda p: p["z"])
+    assert top["z"] == pytest.approx(1.0, abs=1e-3) and top["y"] == pytest.approx(1.0, abs=0.05)
+    assert all(math.hypot(p["y"] - 1.0, p["z"]) == pytest.approx(1.0, abs=1e-9) for p in points)

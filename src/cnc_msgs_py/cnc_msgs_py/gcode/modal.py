@@ -14,7 +14,7 @@ DRILL_CYCLES = {73.0, 81.0, 82.0, 83.0}
 G_GROUPS: dict[float, str] = {
     **{g: "motion" for g in MOTION},
     4.0: "non-modal",
-    17.0: "plane", 18.0: "plane",
+    17.0: "plane", 18.0: "plane", 19.0: "plane",
     7.0: "lathe diameter", 8.0: "lathe diameter",
     20.0: "units", 21.0: "units",
     40.0: "cutter compensation",
@@ -29,7 +29,6 @@ G_GROUPS: dict[float, str] = {
     98.0: "canned cycle return", 99.0: "canned cycle return",
 }
 G_REFUSED: dict[float, str] = {
-    19.0: "the YZ plane is not supported (G17 mills, G18 turns)",
     33.0: "use G76: single threading moves are not supported",
     41.0: "cutter radius compensation is not supported",
     42.0: "cutter radius compensation is not supported",

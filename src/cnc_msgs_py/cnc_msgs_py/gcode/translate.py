@@ -22,6 +22,8 @@ from .polar import has_polar, polar_xy
 DIRECTIVE = "CNC,"  # our comments: (CNC,VIBRATION D=1.5 Q=1.2), (CNC,OVERLAP OFF), (CNC,MACHINE mill3)
 VIBRATION_KEYS = {"D": "D", "Q": "Q", "E": "E", "R": "R", "PHASE": "phase_shift", "DSTEP": "D_step"}
 AXES = ("x", "y", "z")
+# an arc plane's first and second axis and their center offsets (LinuxCNC's order)
+PLANES = {17.0: (("x", "y"), ("I", "J")), 18.0: (("z", "x"), ("K", "I")), 19.0: (("y", "z"), ("J", "K"))}
 
 
 @dataclass
@@ -187,7 +189,7 @@ class Translator:
             s.mist, s.flood = s.mist or 7.0 in m, s.flood or 8.0 in m
         if 9.0 in m:
             s.mist = s.flood = False
-        for plane in (17.0, 18.0):
+        for plane in (17.0, 18.0, 19.0):
             if plane in g:
                 s.plane = plane
         if 7.0 in g or 8.0 in g:
@@ -321,8 +323,7 @@ class Translator:
     def _arc(self, b: Block, used: set[str]) -> None:
         s = self.state
         name = word_text("G", s.motion)
-        a, c = ("x", "y") if s.plane == 17.0 else ("z", "x")
-        offsets = ("I", "J") if s.plane == 17.0 else ("K", "I")
+        (a, c), offsets = PLANES[s.plane]
         if a not in s.position or c not in s.position:
             raise GcodeError(b.line, name, "an arc from an unknown position (move both plane axes first)")
         start = (s.position[a], s.position[c])

@@ -265,8 +265,9 @@ def test_a_mill_program_of_g81_g99_and_g83_g98_runs_as_one_goal_over_topics(tmp_
         drill = op["drill"]
         assert drill["safety_violations"] == 0  # X/Y never off a hole below R, on feedback
         assert len(drill["holes"]) == holes
-        for hole in drill["holes"]:
-            assert abs(hole["depth_mm"] - depth) <= 0.005  # every hole at its own depth within 5 um
+        assert drill["verdict"]["passed"], drill["verdict"]
+        for hole in drill["holes"]:  # every hole at its own depth: the drill's +0.005/-0.2 mm (docs/drill.md)
+            assert -0.2 <= hole["depth_mm"] - depth <= 0.005
     assert ops[3]["drill"]["pecks"]["reentries"] == 6  # Q2 into 8 mm: 3 re-entries per hole
     assert "operation" in result.stdout and "4/4" in result.stdout
 

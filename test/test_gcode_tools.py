@@ -96,3 +96,26 @@ def test_a_subroutine_file_on_the_search_path_goes_into_the_document(tmp_path, m
     assert [s["name"] for s in doc["program"]["subroutines"]] == ["hole"]
     holes = [[list(map(float, h)) for h in op.drill.holes] for _, op, _ in parse_job(doc).program.operations if op.kind == "drill"]
     assert holes == [[[0.005, 0.005], [0.015, 0.005]]]  # one drill operation: the same cycle words
+
+
+def test_g10_sets_a_tool_length_or_touches_one_off():
+    """G10 L1 writes tool 2's length and radius into the program's copy of the table; G10
+    L10 sets tool 1's length so that where it stands reads Z2 (a touch-off); L2/L11 and
+    axis offsets are refused with the reason."""
+    def operations(text: str) -> list:
+        return parse_job({"schema": "cnc_job/1", "job_id": "t", "kind": "program", "machine": "mill3",
+                          "program": {"gcode": text, "tool_table": [{"tool": 1, "length": 30.0},
+                                                                    {"tool": 2, "length": 40.0}]}}).program.operations
+    prefix = "G21 G90 G17\nM3 S1000\nT1 M6\nG43\nG0 X0 Y0 Z10\n"
+    ops = operations(prefix + "G10 L1 P2 Z52.5 R3\nT2 M6\nG43\nG1 Z5 F100\nG10 L10 P2 Z2\nG1 X1\nM2")
+    assert [round(op.tool.length * 1e3, 9) for _, op, _ in ops] == [30.0, 52.5, 55.5]
+    assert ops[1][1].tool.diameter == pytest.approx(6e-3)
+    _, _, last = ops[-1]
+    assert last["move"][-1]["linear"] == {"x": 1.0, "y": 0.0, "z": 2.0}  # the axis stayed; its reading is Z2
+    for text, reason in (("G10 L2 P1 X5", "line 6: G10 L2: work offsets come with the job"),
+                         ("G10 L11 P1 Z1", "line 6: G10 L11: the G59.3 fixture's offsets are the machine's"),
+                         ("G10 L1 P1 X1 Z5", "line 6: X1: only the Z length is applied"),
+                         ("G10 L1 P7 Z5", "line 6: P7: no such tool in the tool table")):
+        with pytest.raises(JobError) as err:
+            operations(prefix + text + "\nM2")
+        assert str(err.value).startswith(reason), str(err.value)

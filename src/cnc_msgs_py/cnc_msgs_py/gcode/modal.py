@@ -13,7 +13,7 @@ MOTION = {0.0, 1.0, 2.0, 3.0, 71.0, 72.0, 73.0, 76.0, 80.0, 81.0, 82.0, 83.0}
 DRILL_CYCLES = {73.0, 81.0, 82.0, 83.0}
 G_GROUPS: dict[float, str] = {
     **{g: "motion" for g in MOTION},
-    4.0: "non-modal",
+    4.0: "non-modal", 10.0: "non-modal",
     17.0: "plane", 18.0: "plane", 19.0: "plane",
     7.0: "lathe diameter", 8.0: "lathe diameter",
     20.0: "units", 21.0: "units",

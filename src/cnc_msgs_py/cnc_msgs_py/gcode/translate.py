@@ -83,6 +83,7 @@ class Translator:
         self.cycle: dict = {}  # sticky canned-cycle words (R, Z, Q, P) and the initial Z
         self.params = Parameters(lambda name: system.named(self, name), lambda n: system.numbered(self, n))
         self.line = 0  # the line running, for #<_line>
+        self.tools = {n: dict(entry) for n, entry in ctx.tool_table.items()}  # G10 L1/L10 edit this copy
 
     # ---- the program
     def run(self, text: str) -> list[Operation]:
@@ -216,8 +217,50 @@ class Translator:
             s.retract_initial = 98.0 in g
         if 4.0 in g:
             self._dwell(b, used)
-        self._motion(b, g, used)
+        if 10.0 in g:
+            self._g10(b, used)  # its axis words are data, not motion
+        else:
+            self._motion(b, g, used)
         return 2.0 in m or 30.0 in m
+
+    def _g10(self, b: Block, used: set[str]) -> None:
+        """G10 L1 P<tool> Z R: a tool's length and radius into the table; G10 L10 P<tool> Z: its
+        length such that the current position reads Z (a touch-off). The table is this
+        program's copy: the job's table is not changed."""
+        s = self.state
+        level = b.words.get("L")
+        if level not in (1.0, 10.0):
+            why = ("the G59.3 fixture's offsets are the machine's" if level == 11.0 else
+                   "work offsets come with the job (setup, program.work_offsets)" if level in (2.0, 20.0) else
+                   "needs L1 or L10 (tool table entries)")
+            raise GcodeError(b.line, "G10" if level is None else f"G10 L{level:g}", why)
+        if "P" not in b.words:
+            raise GcodeError(b.line, f"G10 L{level:g}", "needs P, the tool")
+        used.update(k for k in "LP" if k in b.words)
+        tool = self._tool_number(b, "P")
+        if tool == 0:
+            raise GcodeError(b.line, "P0", "tool 0 is no tool")
+        for k in "XYABCUVW":
+            if k in b.words:
+                raise GcodeError(b.line, word_text(k, b.words[k]), "only the Z length is applied (G43), "
+                                                                  f"an offset in {k} is not")
+        entry = self.tools[tool]
+        if "Z" in b.words:
+            used.add("Z")
+            z = s.length(b.words["Z"])
+            if level == 10.0:
+                if "z" not in s.position:
+                    raise GcodeError(b.line, "G10 L10", "the Z position is unknown here: move Z first")
+                z = s.position["z"] + self.applied_length() - z
+                if s.length_offset and s.length_tool == tool:
+                    s.position["z"] = s.length(b.words["Z"])  # the axis stays; its reading changes
+            if z < 0.0:
+                raise GcodeError(b.line, word_text("Z", b.words["Z"]), f"gives tool {tool} a negative length "
+                                                                      f"({z:g} mm)")
+            entry["length"] = z
+        if "R" in b.words:
+            used.add("R")
+            entry["diameter"] = 2.0 * s.length(b.words["R"])
 
     def _tool_number(self, b: Block, letter: str) -> int:
         """A T, Q (M61) or H (G43) word's tool: a whole number in the tool table (0: none)."""
@@ -226,14 +269,14 @@ class Translator:
             n = whole(value, word_text(letter, value))
         except ValueError:
             n = -1
-        if n < 0 or n != 0 and n not in self.ctx.tool_table:
+        if n < 0 or n != 0 and n not in self.tools:
             raise GcodeError(b.line, word_text(letter, value), "no such tool in the tool table (program.tool_table, "
                                                               "--tools FILE)")
         return n
 
     def tool_entry(self, n: int) -> dict:
         """Tool ``n``'s table entry (mm), empty for tool 0."""
-        return self.ctx.tool_table.get(n, {})
+        return self.tools.get(n, {})
 
     def applied_length(self) -> float:
         """The tool length G43 applies now (mm), 0 under G49."""

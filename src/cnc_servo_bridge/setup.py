@@ -37,7 +37,7 @@ setup(
     license="Apache-2.0",
     tests_require=["pytest"],
     entry_points={"console_scripts": [
-        "bridge = cnc_servo_bridge.bridge_node:main",
-        "cnc-bridge = cnc_servo_bridge.bridge_node:main",
+        "bridge = cnc_servo_bridge.bridge_main:main",
+        "cnc-bridge = cnc_servo_bridge.bridge_main:main",
     ]},
 )

@@ -22,6 +22,8 @@ from pathlib import Path
 
 import yaml
 
+from cnc_msgs_py.yaml_text import load_yaml
+
 LAYOUTS = ("mill3", "lathe", "lathe_y", "5ax_table_table", "5ax_head_table")
 AXIS_TYPES = ("linear", "rotary", "continuous")
 SPINDLE = "spindle"
@@ -351,7 +353,7 @@ def load_machine(name_or_path: str) -> Machine:
             )
         path = found[0]
     try:
-        doc = yaml.safe_load(path.read_text())
+        doc = load_yaml(path.read_text())
     except OSError as err:
         raise MachineError(f"machine file {path}: {err.strerror}") from err
     except yaml.YAMLError as err:

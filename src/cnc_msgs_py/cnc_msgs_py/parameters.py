@@ -20,8 +20,19 @@ if TYPE_CHECKING:
 
 
 @dataclass(frozen=True)
+class Unset:
+    """A parameter declared without a value, of one ``rclpy.Parameter.Type`` (its name), so
+    that a table needs no rclpy to be read."""
+
+    type: str
+
+    def __str__(self) -> str:
+        return "unset"
+
+
+@dataclass(frozen=True)
 class Param:
-    """One parameter: ``default`` (a value, or a ``Parameter.Type`` for "unset")."""
+    """One parameter: ``default`` (a value, or ``Unset`` of a type)."""
 
     default: Any
     description: str
@@ -56,10 +67,12 @@ def declare(node: Node, table: dict[str, Param]) -> None:
             or of the wrong type; the message names the parameter.
     """
     from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+    from rclpy.parameter import Parameter
 
     for name, param in table.items():
+        default = Parameter.Type[param.default.type] if isinstance(param.default, Unset) else param.default
         try:
-            node.declare_parameter(name, param.default, param.descriptor())
+            node.declare_parameter(name, default, param.descriptor())
         except (InvalidParameterValueException, InvalidParameterTypeException) as err:
             raise ValueError(f"parameter '{name}': {err}") from err
 

@@ -8,8 +8,8 @@ Plants (on every linear and rotary axis of the job's machine, the spindle as des
   friction+lash    Coulomb friction 0.3 mm/s, 4 um backlash   (outside it: the tolerance allows none)
 
 "After" identifies each plant from one run of the machine layout's calibration job
-(config/jobs/identify_<layout>.yaml) and runs the job again with CNC_MACHINE_PATH pointing at
-the fitted description. Every run is the user's command, end to end over topics; the
+(config/jobs/identify_<layout>.yaml) and the job's own "before" recording, then runs the job
+again with CNC_MACHINE_PATH pointing at the fitted description. Every run is the user's command, end to end over topics; the
 figures are read from its report.json.
 
 Usage: bench/plants.py [--jobs drill_row,thread_m12,...] [--no-identify]
@@ -85,14 +85,17 @@ def cnc_run(job: Path, out: Path, plant: Path | None, machine_path: Path | None 
     return code, json.loads(report.read_text()) if report.is_file() else {}
 
 
-def identify(machine_name: str, plant: Path, folder: Path) -> Path:
-    """Run the layout's calibration job on the plant and fit a description from its bag."""
+def identify(machine_name: str, plant: Path, production: Path, folder: Path) -> Path:
+    """Fit a description from the layout's calibration job run on the plant and from the
+    job's own recording there (any production bag works: the calibration moves only X, Y and
+    Z, a 5-axis path excites the rotaries)."""
     layout = load_machine(machine_name).layout
     calibration = folder / f"calibrate_{plant.stem}"
-    cnc_run(JOBS / f"identify_{layout}.yaml", calibration, plant)
-    fitted = folder / f"fitted_{plant.stem}"
-    subprocess.run([str(BIN / "cnc-identify"), str(calibration / "bag"), "--out", str(fitted)], check=True,
-                   stdout=subprocess.DEVNULL)
+    if not calibration.exists():
+        cnc_run(JOBS / f"identify_{layout}.yaml", calibration, plant)
+    fitted = folder / f"fitted_{production.name}"
+    subprocess.run([str(BIN / "cnc-identify"), str(calibration / "bag"), str(production / "bag"), "--out",
+                    str(fitted)], check=True, stdout=subprocess.DEVNULL)
     return fitted
 
 
@@ -110,7 +113,8 @@ def figures(report: dict, target_depth_mm: float | None) -> dict:
                          else thread.get("depth_error_mm", None) and thread["depth_error_mm"] * 1e3),
         "overcut_um": thread["overcut_mm"] * 1e3 if "overcut_mm" in thread else None,
         "chip_revs": chip,
-        "tip_um": (report.get("path") or {}).get("max_tip_deviation_mm") and report["path"]["max_tip_deviation_mm"] * 1e3,
+        "tip_um": (report.get("kinematics") or {}).get("max_tip_deviation_mm") and
+                  report["kinematics"]["max_tip_deviation_mm"] * 1e3,
         "cycle_s": report.get("cycle_time_s"),
         "state": report.get("state"),
         "failed": ",".join(failed) or "-",
@@ -150,7 +154,6 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         exact = exact_machines(folder)
-        fitted: dict[Path, Path] = {}
         for name in args.jobs.split(","):
             doc = JOB_DOCS[name]()
             job = folder / f"{name.replace(' ', '_')}.json"
@@ -161,16 +164,15 @@ def main() -> int:
             depth = doc.get("drill", {}).get("depth")
             for plant in PLANTS:
                 path = plant_file(doc["machine"], plant, folder)
-                runs = [("before", None)]
-                if path is not None and not args.no_identify:
-                    if path not in fitted:
-                        fitted[path] = identify(doc["machine"], path, folder)
-                    runs.append(("after", fitted[path]))
-                for when, machine_path in runs:
-                    out = folder / f"run_{len(rows)}"
+                before = folder / f"run_{len(rows)}"
+                runs = [("before", before, None)]
+                for when, out, machine_path in runs:
                     code, report = cnc_run(job, out, path, machine_path)
                     rows.append({"job": name, "plant": plant, "when": when, "exit": code, **figures(report, depth)})
                     print(json.dumps(rows[-1]), flush=True)
+                    if when == "before" and path is not None and not args.no_identify:
+                        runs.append(("after", folder / f"run_{len(rows)}", identify(doc["machine"], path, before,
+                                                                                     folder)))
     header = (f"{'job':<21} {'plant':<16} {'ident.':<6} {'exit':>4} {'X/Y below R':>11} {'depth err um':>12} "
               f"{'overcut um':>10} {'chip rev':>8} {'tip um':>7} {'cycle s':>8}  failed verdicts")
     lines = [header, "-" * len(header)]

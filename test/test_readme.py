@@ -15,7 +15,8 @@ import pytest
 import yaml
 
 from cnc_msgs_py.job import KINDS, load_job_file, parse_job
-from cnc_msgs_py.machine import load_machine, parse_machine
+from cnc_msgs_py.machine import load_machine, parse_drive, parse_machine
+from cnc_msgs_py.plant import parse_plant
 from cnc_planner.planning import plan_job
 from cnc_planner.runner import Session
 
@@ -29,7 +30,9 @@ BLOCKS = [(page, lang, text) for page in PAGES
 EXAMPLE = {"move": "move_mill3", "drill": "drill_row", "turn": "turn_stepped", "thread": "thread_m12",
            "path": "path_5ax_tilt", "vibration": "lathe_feed_vibration", "program": "program_mill3"}
 YAML = [(page, yaml.safe_load(text)) for page, lang, text in BLOCKS if lang == "yaml"]
-JOB_BLOCKS = [(page, doc) for page, doc in YAML if "axes" not in doc]
+JOB_BLOCKS = [(page, doc) for page, doc in YAML if "axes" not in doc and "drive" not in doc]
+# A plant file, or a description's drive entries (with their tolerance), without the axes.
+DRIVE_BLOCKS = [(page, doc) for page, doc in YAML if "drive" in doc and "axes" not in doc]
 PYTHON = [text for _, lang, text in BLOCKS if lang == "python"]
 SHELL = [text for _, lang, text in BLOCKS if lang == "sh"]
 
@@ -44,6 +47,16 @@ def test_job_fragment_validates_and_plans_in_its_example(page, fragment):
         doc.update(fragment)
     job = parse_job(doc)
     assert plan_job(job, load_machine(job.machine)).duration > 0
+
+
+@pytest.mark.parametrize("page, fragment", DRIVE_BLOCKS, ids=lambda x: x.name if isinstance(x, Path) else "+".join(x))
+def test_plant_and_drive_fragments_parse(page, fragment):
+    """A plant file parses over mill3; a description's drive entries parse as drives."""
+    if any("tolerance" in spec for spec in fragment["drive"].values()):
+        for joint, spec in fragment["drive"].items():
+            assert parse_drive(spec, f"drive.{joint}").tolerance.kp[0] > 0
+    else:
+        assert parse_plant(fragment, load_machine("mill3")).drives.keys() == {"x", "y", "z", "spindle"}
 
 
 def test_every_kind_page_has_an_executed_example():

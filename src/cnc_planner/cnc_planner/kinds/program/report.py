@@ -1,5 +1,6 @@
 """The ``program`` section of report.json: each operation of a G-code program judged by its
-own kind's judge on its share of the recording, imported only to report."""
+own kind's judge on its share of the recording, imported only to report. The section's
+verdict fails where any operation's does, so a program is never a silent success."""
 from __future__ import annotations
 
 import json
@@ -11,6 +12,7 @@ import numpy as np
 from cnc_msgs_py.machine import Machine
 
 from cnc_analysis.recording import Run
+from cnc_analysis.verdict import verdict
 
 from cnc_planner.kinds.program import OPERATION, kinds
 
@@ -45,4 +47,10 @@ def program_section(run: Run, job: SimpleNamespace, machine: Machine, window: np
                 own = _operation_run(run, part, starts[index], t1, doc)
                 entry[section.key] = section.judge(own, op, machine, np.ones(len(own.feedback_t), dtype=bool))
         sections.append(entry)
-    return {"operations": sections}
+    failures = [f"operation {e['index']} (line {e['line']}, {e['kind']}): {s['verdict']['says']}"
+                for e in sections for s in e.values()
+                if isinstance(s, dict) and isinstance(s.get("verdict"), dict) and s["verdict"].get("passed") is False]
+    judged = sum(1 for e in sections for s in e.values() if isinstance(s, dict) and "verdict" in s)
+    return {"operations": sections,
+            "verdict": verdict("every operation's own verdict on its share of the feedback", failures,
+                               f"{judged} of {len(sections)} operations judged, every verdict passed")}

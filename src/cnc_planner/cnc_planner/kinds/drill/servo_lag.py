@@ -42,12 +42,12 @@ Emit = Callable[[PlanBuilder, float, np.ndarray, np.ndarray, np.ndarray, bool], 
 
 def _feedback(machine: Machine, plan: Plan, ts: np.ndarray, period: float, joints: tuple[str, ...],
               drives: list[Drive]) -> np.ndarray:
-    """Feedback (plants, len(ts), len(joints)) of each drive (one for every joint listed) from
-    rest at the plan's position at ts[0], all in one model (a column per joint and drive);
-    the plan sampled BLOCK_S at a time (the same values as in one piece, without the whole
-    cycle's setpoints in memory)."""
-    order = sorted(range(len(drives)), key=lambda i: drives[i].delay)  # columns of one delay side by side
-    model = DriveModel.columns(machine, period, [(j, drives[i]) for i in order for j in joints])
+    """Feedback (len(ts), plants, len(joints)) of each drive (one for every joint listed), in
+    an order of its own, from rest at the plan's position at ts[0], all in one model (a column
+    per joint and drive, those of one delay side by side); the plan sampled BLOCK_S at a time
+    (the same values as in one piece, without the whole cycle's setpoints in memory)."""
+    drives = sorted(drives, key=lambda d: d.delay)
+    model = DriveModel.columns(machine, period, [(j, d) for d in drives for j in joints])
     out = np.empty((len(ts), len(drives) * len(joints)))
     block = max(2, int(BLOCK_S / period))
     for lo in range(0, len(ts), block):
@@ -55,7 +55,7 @@ def _feedback(machine: Machine, plan: Plan, ts: np.ndarray, period: float, joint
         if lo == 0:
             model.reset(p[0])
         out[lo:lo + block] = model.run(p, v, a)[0]
-    return out.reshape(len(ts), len(drives), len(joints)).transpose(1, 0, 2)[np.argsort(order)]
+    return out.reshape(len(ts), len(drives), len(joints))
 
 
 class ServoLag:
@@ -84,24 +84,26 @@ class ServoLag:
         starts = np.searchsorted(ts, [info["s1"] for info in infos] + [ts[-1] + 1.0, ts[-1] + 1.0])
         planes = (np.array([c.air_plane(i) for i in range(self.n)]), np.array([c.air_plane(i + 1) for i in range(self.n)]))
         holes = (np.array([info["x"] for info in infos]), np.array([info["y"] for info in infos]))
-        lowest_z = _feedback(self.machine, plan, ts, period, ("z",), self.z_drives)[:, :, 0].min(axis=0)
+        feedback = np.empty((len(ts), 3))  # X/Y of one drive beside the lowest Z of all
+        feedback[:, 2] = _feedback(self.machine, plan, ts, period, ("z",), self.z_drives)[:, :, 0].min(axis=1)
         worst_down, worst_up = np.full(self.n, -np.inf), np.full(self.n, -np.inf)
-        for xy in self._xy_feedback(plan, ts, period):
+        for x, y in self._xy_feedback(plan, ts, period):
+            feedback[:, 0], feedback[:, 1] = x, y
             down, up = np.zeros(self.n), np.zeros(self.n)
-            lag_scan(np.column_stack([xy, lowest_z]), starts.astype(np.intp), *planes, *holes, c.xy_tolerance,
-                     down, up)
+            lag_scan(feedback, starts.astype(np.intp), *planes, *holes, c.xy_tolerance, down, up)
             np.maximum(worst_down, down, out=worst_down)
             np.maximum(worst_up, up, out=worst_up)
         return worst_down, worst_up
 
-    def _xy_feedback(self, plan: Plan, ts: np.ndarray, period: float) -> np.ndarray:
-        """X/Y feedback (plants, len(ts), 2) of every X/Y drive pairing checked."""
+    def _xy_feedback(self, plan: Plan, ts: np.ndarray, period: float) -> list[tuple[np.ndarray, np.ndarray]]:
+        """X and Y feedback (len(ts) each) of every X/Y drive pairing checked."""
         if self.xy_drives is not None:
-            return _feedback(self.machine, plan, ts, period, ("x", "y"), self.xy_drives)
+            both = _feedback(self.machine, plan, ts, period, ("x", "y"), self.xy_drives)
+            return [(both[:, i, 0], both[:, i, 1]) for i in range(both.shape[1])]
         # X and Y described differently: each at each of its own corners
         xs = _feedback(self.machine, plan, ts, period, ("x",), tolerance_drives(self.machine, "x"))[:, :, 0]
         ys = _feedback(self.machine, plan, ts, period, ("y",), tolerance_drives(self.machine, "y"))[:, :, 0]
-        return np.stack(np.broadcast_arrays(xs[:, None, :], ys[None, :, :]), axis=-1).reshape(-1, len(ts), 2)
+        return [(xs[:, i], ys[:, k]) for i in range(xs.shape[1]) for k in range(ys.shape[1])]
 
     def safe_gaps(self, emit: Emit, t0: float, e_down: np.ndarray, e_up: np.ndarray,
                   floor_down: np.ndarray, floor_up: np.ndarray, rounds: int = SAFETY_ROUNDS

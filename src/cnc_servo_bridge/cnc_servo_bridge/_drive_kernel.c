@@ -54,20 +54,21 @@ static inline double step(const Drive *d, double period, double p_ref, double v_
 
 enum { MAX_IN_REGISTERS = 6 };  /* joints whose state the loop below keeps in registers */
 
-/* DriveModel.step over every row for `joints` joints, a constant once inlined: the loop over
- * the joints unrolls, their state stays in registers, and each joint's chain of dependent
- * operations runs beside the others'. */
+/* DriveModel.step over every row for `joints` joints, a constant once inlined, of rows
+ * `stride` values apart (the joints being a group of a wider row): the loop over the joints
+ * unrolls, their state stays in registers, and each joint's chain of dependent operations
+ * runs beside the others'. */
 static inline __attribute__((always_inline)) void run_fixed(
-    const Py_ssize_t joints, Py_ssize_t rows, const double *restrict p_ref, const double *restrict v_ref,
-    const double *restrict a_ref, double *restrict position, double *restrict velocity, double *restrict measured,
-    const Drive *drives, double period, double *restrict out)
+    const Py_ssize_t joints, Py_ssize_t rows, Py_ssize_t stride, const double *restrict p_ref,
+    const double *restrict v_ref, const double *restrict a_ref, double *restrict position, double *restrict velocity,
+    double *restrict measured, const Drive *drives, double period, double *restrict out)
 {
-    const Py_ssize_t plane = rows * joints;
+    const Py_ssize_t plane = rows * stride;
     double pos[MAX_IN_REGISTERS], vel[MAX_IN_REGISTERS], meas[MAX_IN_REGISTERS];
 #pragma GCC unroll 8
     for (Py_ssize_t j = 0; j < joints; j++)
         pos[j] = position[j], vel[j] = velocity[j], meas[j] = measured[j];
-    for (Py_ssize_t k = 0; k < plane; k += joints) {
+    for (Py_ssize_t k = 0; k < plane; k += stride) {
 #pragma GCC unroll 8
         for (Py_ssize_t j = 0; j < joints; j++) {
             out[k + j] = meas[j];
@@ -82,28 +83,26 @@ static inline __attribute__((always_inline)) void run_fixed(
 }
 
 /* DriveModel.step over every row, in place on the state; out[0..2] = measured position,
- * velocity and following error before each step. Up to MAX_IN_REGISTERS joints (every
- * machine here) with their state in registers; more, one joint after another per row. */
+ * velocity and following error before each step. The joints go in groups of up to
+ * MAX_IN_REGISTERS (every machine here is one group) with their state in registers: the
+ * planner's tolerance corners are dozens of columns. The joints do not interact, so the
+ * order the groups run in changes no value. */
 static void run(Py_ssize_t rows, Py_ssize_t joints, const double *restrict p_ref, const double *restrict v_ref,
                 const double *restrict a_ref, double *restrict position, double *restrict velocity,
                 double *restrict measured, const Drive *drives, double period, double *restrict out)
 {
-    switch (joints) {
-    case 1: run_fixed(1, rows, p_ref, v_ref, a_ref, position, velocity, measured, drives, period, out); return;
-    case 2: run_fixed(2, rows, p_ref, v_ref, a_ref, position, velocity, measured, drives, period, out); return;
-    case 3: run_fixed(3, rows, p_ref, v_ref, a_ref, position, velocity, measured, drives, period, out); return;
-    case 4: run_fixed(4, rows, p_ref, v_ref, a_ref, position, velocity, measured, drives, period, out); return;
-    case 5: run_fixed(5, rows, p_ref, v_ref, a_ref, position, velocity, measured, drives, period, out); return;
-    case 6: run_fixed(6, rows, p_ref, v_ref, a_ref, position, velocity, measured, drives, period, out); return;
-    default: break;
-    }
-    const Py_ssize_t plane = rows * joints;
-    for (Py_ssize_t k = 0; k < plane; k += joints) {
-        for (Py_ssize_t j = 0; j < joints; j++) {
-            out[k + j] = measured[j];
-            out[plane + k + j] = velocity[j];
-            out[2 * plane + k + j] = step(&drives[j], period, p_ref[k + j], v_ref[k + j], a_ref[k + j],
-                                          &position[j], &velocity[j], &measured[j]);
+    for (Py_ssize_t g = 0; g < joints; g += MAX_IN_REGISTERS) {
+        const Py_ssize_t n = joints - g < MAX_IN_REGISTERS ? joints - g : MAX_IN_REGISTERS;
+        const double *p = p_ref + g, *v = v_ref + g, *a = a_ref + g;
+        double *pos = position + g, *vel = velocity + g, *meas = measured + g, *o = out + g;
+        const Drive *d = drives + g;
+        switch (n) {
+        case 1: run_fixed(1, rows, joints, p, v, a, pos, vel, meas, d, period, o); break;
+        case 2: run_fixed(2, rows, joints, p, v, a, pos, vel, meas, d, period, o); break;
+        case 3: run_fixed(3, rows, joints, p, v, a, pos, vel, meas, d, period, o); break;
+        case 4: run_fixed(4, rows, joints, p, v, a, pos, vel, meas, d, period, o); break;
+        case 5: run_fixed(5, rows, joints, p, v, a, pos, vel, meas, d, period, o); break;
+        default: run_fixed(6, rows, joints, p, v, a, pos, vel, meas, d, period, o); break;
         }
     }
 }

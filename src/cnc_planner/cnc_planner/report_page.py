@@ -46,6 +46,10 @@ def write_report_page(report: dict, plots: list[Path], out: Path, *, job: dict |
     return out
 
 
+FOLD_ROWS = 20  # a longer table (a plate's 300 holes) shows its first SHOWN_ROWS rows, the rest folded
+SHOWN_ROWS = 10
+
+
 def render(report: dict, plots: list[Path], *, job: dict | None = None) -> str:
     """The page as a string (see write_report_page)."""
     job = job or {}
@@ -56,7 +60,8 @@ def render(report: dict, plots: list[Path], *, job: dict | None = None) -> str:
     figures = [_figure(p) for p in sorted(map(Path, plots), key=lambda p: p.stem == "following_error")]
     return PAGES.get_template("report.html.j2").render(
         title=f"CNC run {report.get('job_id', '')}", state=state, state_class=_state_class(state), subtitle=subtitle,
-        reason=report.get("reason"), cards=verdicts(report), tables=tables(report), figures=figures)
+        reason=report.get("reason"), cards=verdicts(report), tables=tables(report), figures=figures,
+        fold_rows=FOLD_ROWS, shown_rows=SHOWN_ROWS)
 
 
 def _sections(report: dict) -> list[tuple[ReportSection, dict]]:

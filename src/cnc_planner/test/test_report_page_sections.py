@@ -99,3 +99,20 @@ def test_every_value_from_the_report_is_escaped():
     assert "alarms: limit &lt;X+&gt;" in text and "<td>&lt;b&gt;arc&lt;/b&gt;</td>" in text
     assert "machine &lt;mill&gt;" in text
     assert "<tr><td></td><td></td>" in text  # a hole without figures: empty cells, not 'None'
+
+
+def test_a_long_table_shows_its_first_rows_and_folds_the_rest():
+    """A plate's holes table: the first rows on the page, all of them behind one click."""
+    from cnc_planner.report_page import FOLD_ROWS, SHOWN_ROWS
+
+    holes = [{"index": i, "x_mm": float(i), "y_mm": 0.0, "depth_mm": 5.0, "mode": 1} for i in range(FOLD_ROWS + 5)]
+    report = {"job_id": "plate", "state": "succeeded", "reason": "", "cycle_time_s": 1.0, "max_following_error": {},
+              "setpoints": 1, "chunks": 1, "chunks_lost": 0,
+              "drill": {"holes": holes, "safety_violations": 0, "cycle_time_s": 1.0}}
+    html = render(report, [])
+    folded = re.search(r'<details class="fold"><summary>all (\d+) rows</summary>(.*?)</details>', html, re.S)
+    assert folded and int(folded.group(1)) == FOLD_ROWS + 5
+    before = html[:folded.start()]
+    assert before.count("<tr><td>") == SHOWN_ROWS and folded.group(2).count("<tr><td>") == FOLD_ROWS + 5
+    holes[FOLD_ROWS:] = []
+    assert '<details class="fold">' not in render(report, [])

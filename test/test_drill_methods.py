@@ -6,7 +6,6 @@ from __future__ import annotations
 import json
 
 import numpy as np
-import pytest
 
 from cnc_msgs_py.job import load_job_file, parse_job
 from cnc_msgs_py.machine import load_machine

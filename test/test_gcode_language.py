@@ -147,7 +147,7 @@ o100 while [#<i> LT #<n>]
 o100 endwhile
 G80
 M2"""
-    (move, drill), = [ops(text)[:2]]
+    (_, drill), = [ops(text)[:2]]
     holes = drill["drill"]["holes"]
     assert len(holes) == 6
     for k, (x, y) in enumerate(holes):

@@ -33,7 +33,6 @@ from cnc_planner.motion.plan_check import BLOCK_S
 from cnc_planner.motion.timeline import Plan
 
 SAFETY_ROUNDS = 40  # drive-model rounds before giving up on a safe timing
-XYZ = ("x", "y", "z")
 
 # A cycle written into a builder for given gaps (e_down, e_up) and air accelerations
 # (overlap.py, conventional.py); the last argument asks for each air move's energy.

@@ -102,14 +102,20 @@ def outside_tolerance(machine: Machine, plant: Plant) -> list[str]:
     return found
 
 
+def _corner(drive: Drive, kp: int, lag: int, ff: int, delay: int, losses: bool) -> Drive:
+    """The drive at one corner of its tolerance: each range's end 0 (low) or 1 (high), the
+    feed-forwards together, with or without the most backlash and friction it allows."""
+    tol = drive.tolerance
+    return replace(drive, kp=drive.kp * tol.kp[kp], velocity_lag=drive.velocity_lag * tol.velocity_lag[lag],
+                   velocity_ff=drive.velocity_ff * tol.velocity_ff[ff], accel_ff=drive.accel_ff * tol.accel_ff[ff],
+                   delay=drive.delay + tol.delay[delay], backlash=drive.backlash + (tol.backlash if losses else 0.0),
+                   friction=drive.friction + (tol.friction if losses else 0.0), noise=0.0)
+
+
 def lagging_corner(drive: Drive) -> Drive:
     """The drive inside the tolerance that lags its command most: least gain and feed-forward,
     the slowest velocity loop, the longest delay, the most friction and backlash."""
-    tol = drive.tolerance
-    return replace(drive, kp=drive.kp * tol.kp[0], velocity_ff=drive.velocity_ff * tol.velocity_ff[0],
-                   accel_ff=drive.accel_ff * tol.accel_ff[0], velocity_lag=drive.velocity_lag * tol.velocity_lag[1],
-                   delay=drive.delay + tol.delay[1], backlash=drive.backlash + tol.backlash,
-                   friction=drive.friction + tol.friction, noise=0.0)
+    return _corner(drive, kp=0, lag=1, ff=0, delay=1, losses=True)
 
 
 def tolerance_corners(drive: Drive) -> list[Drive]:
@@ -119,13 +125,10 @@ def tolerance_corners(drive: Drive) -> list[Drive]:
     them (more gain with a slower loop overshoots, less feed-forward lags but overshoots
     less), so the planner checks its timing against all of them."""
     tol = drive.tolerance
-    losses = ((0.0, 0.0), (tol.backlash, tol.friction)) if tol.backlash or tol.friction else ((0.0, 0.0),)
+    losses = (False, True) if tol.backlash or tol.friction else (False,)
     corners: list[Drive] = []
-    for kp, lag, ff, delay, (backlash, friction) in product(tol.kp, tol.velocity_lag, range(2), tol.delay, losses):
-        corner = replace(drive, kp=drive.kp * kp, velocity_lag=drive.velocity_lag * lag, noise=0.0,
-                         velocity_ff=drive.velocity_ff * tol.velocity_ff[ff], accel_ff=drive.accel_ff * tol.accel_ff[ff],
-                         delay=drive.delay + delay, backlash=drive.backlash + backlash,
-                         friction=drive.friction + friction)
+    for ends in product(range(2), range(2), range(2), range(2), losses):
+        corner = _corner(drive, *ends)
         if corner not in corners:
             corners.append(corner)
     return corners

@@ -19,13 +19,13 @@ from typing import Callable
 import numpy as np
 
 from cnc_msgs_py.machine import Machine
-from cnc_msgs_py.plant import tolerance_corners
 from cnc_servo_bridge.drive import DriveModel
 
 from cnc_planner.kinds.drill.cycle import RETURN_CLEARANCE, DrillCycle, DrillError
 from cnc_planner.kinds.drill.peck import peck_moves
 from cnc_planner.kinds.drill.retract import Retract
 from cnc_planner.kinds.drill.z_axis import ZAxis, z_move, z_samples, z_state
+from cnc_planner.motion.compensation import tolerance_drives
 from cnc_planner.motion.moves import RuckigMove
 
 BOTTOM_ROUNDS = 6  # drive-model rounds placing the Z command's turning point at a hole's bottom
@@ -124,10 +124,7 @@ class Bottoms:
                 # the gentlest exit (rest to rest above R) sampled at BOTTOM_PHASES, so
                 # that every hole lands close.
                 errors = []
-                for exit_move, phase in itertools.product(
-                        (self.fast_exit(turn, c.r_z).move,
-                         z_move(self.z.turn, turn, 0.0, 0.0, c.r_z + RETURN_CLEARANCE)),
-                        np.arange(BOTTOM_PHASES) / BOTTOM_PHASES):
+                for exit_move, phase in itertools.product(self._exits(turn), np.arange(BOTTOM_PHASES) / BOTTOM_PHASES):
                     p, v, a, k0 = reference(c, start, lead_in, stroke, exit_move,
                                             math.ceil(exit_move.duration / period) + steady, phase)
                     drive.reset(p[:1])
@@ -142,6 +139,11 @@ class Bottoms:
             self._turns[key] = turn + self._overshoot(start, lead_in, turn, bottom)
         return self._turns[key]
 
+    def _exits(self, turn: float) -> tuple[RuckigMove, RuckigMove]:
+        """The fastest exit from a turning point and the gentlest (rest to rest above R)."""
+        c = self.cycle
+        return self.fast_exit(turn, c.r_z).move, z_move(self.z.turn, turn, 0.0, 0.0, c.r_z + RETURN_CLEARANCE)
+
     def _overshoot(self, start: float, lead_in: tuple[RuckigMove, ...], turn: float, bottom: float) -> float:
         """How far the deepest Z drive inside the tolerance goes below ``bottom`` when the
         command turns at ``turn`` (0 if none does): the turning point rises by that much, so
@@ -149,18 +151,18 @@ class Bottoms:
         rather than cut; identifying the drives narrows the tolerance and gives it back)."""
         c = self.cycle
         period = c.servo_period
-        corners = [d for d in tolerance_corners(self.machine.drives["z"]) if d != self.machine.drives["z"]]
+        corners = tolerance_drives(self.machine, "z")[1:]  # the described drive lands on the bottom
         if not corners:
             return 0.0
         stroke = self.z.stroke(start, turn)
         deepest = bottom
-        for corner, exit_move in itertools.product(corners, (self.fast_exit(turn, c.r_z).move, z_move(
-                self.z.turn, turn, 0.0, 0.0, c.r_z + RETURN_CLEARANCE))):
+        for exit_move in self._exits(turn):  # every corner at once, a column each
             p, v, a, k0 = reference(c, start, lead_in, stroke, exit_move,
                                     math.ceil(exit_move.duration / period) + math.ceil(BOTTOM_STEADY_S / period), 0.0)
-            drive = DriveModel(self.machine, period, ("z",), drives={"z": corner})
-            drive.reset(p[:1])
-            deepest = min(deepest, float(np.min(drive.run(p[:, None], v[:, None], a[:, None])[0][k0:, 0])))
+            drives = DriveModel.columns(self.machine, period, [("z", d) for d in corners])
+            drives.reset(np.full(len(corners), p[0]))
+            feedback = drives.run(*(np.repeat(x[:, None], len(corners), axis=1) for x in (p, v, a)))[0]
+            deepest = min(deepest, float(np.min(feedback[k0:])))
         if bottom - deepest > LEFT_MATERIAL_LIMIT:
             z = self.machine.drives["z"].tolerance
             raise DrillError("drill", f"a Z drive inside its tolerance (kp x{z.kp[0]:g}-{z.kp[1]:g}, velocity_lag "

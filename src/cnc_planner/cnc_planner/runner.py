@@ -286,16 +286,16 @@ class Session:
 def run_job(text: str, job_id: str, machine: str, bag_dir: Path, *, timeout: float = 900.0,
             progress: Callable[[dict], None] | None = None, namespace: str = topics.NAMESPACE,
             plant: str = "") -> dict:
-    """Run one job document (JSON text) through both nodes, recording to ``bag_dir``;
-    ``plant``: a plant file the bridge emulates instead of the description.
+    """Run one job document (JSON text) through both nodes, recording to ``bag_dir``; the
+    bridge emulates ``plant`` (a plant file) if given.
 
     Returns the job's final status document.
 
     Raises:
         RunError: the nodes did not come up, or the job did not end within ``timeout``.
     """
-    with Session(machine, bag_dir, progress=progress, namespace=namespace,
-                 bridge_params={"plant": plant} if plant else None) as session:
+    bridge = {"plant": plant} if plant else None
+    with Session(machine, bag_dir, progress=progress, namespace=namespace, bridge_params=bridge) as session:
         session.submit(text)
         status = session.wait(job_id, timeout)
         if status["state"] != "rejected":

@@ -37,7 +37,7 @@ from cnc_msgs_py.plant import lagging_corner
 from cnc_msgs_py.schema import JobError
 from cnc_servo_bridge.drive import DriveModel
 
-from cnc_planner.motion import collector
+from cnc_planner.motion import SERVO_PERIOD, collector  # the grid the feedback's jerk is measured on
 from cnc_planner.motion.plan_check import check_plan
 from cnc_planner.motion.timeline import Plan
 
@@ -62,7 +62,6 @@ STEPS = (
 )
 
 
-SERVO_PERIOD = 1e-3  # s: the grid the feedback's jerk is measured on (the bridge's)
 LAGGING_SHARE = 1.5  # the most lagging drive inside the tolerance may use this much more of the
 # alarm limit than the described one (0.9 of it at the first step)
 
@@ -98,7 +97,8 @@ def derated(machine: Machine, step: Headroom) -> Machine:
         # Steady error within its share of the alarm limit, 70 % of it for velocity and 30 % for
         # acceleration, on the described drive and, with a larger share, on the one inside the
         # tolerance that lags most: no plant inside it trips the alarm on a rapid.
-        for lagging, error_share in ((drive, step.error_share), (lagging_corner(drive), LAGGING_SHARE * step.error_share)):
+        for lagging, error_share in ((drive, step.error_share),
+                                     (lagging_corner(drive), LAGGING_SHARE * step.error_share)):
             budget = error_share * drive.following_error_limit
             per_velocity, per_acceleration = lagging.steady_error(1.0, 0.0), lagging.steady_error(0.0, 1.0)
             if per_velocity > 0.0:

@@ -45,39 +45,37 @@ def check_plan(plan: Plan, machine: Machine, period: float, field: str) -> None:
     period_ns = round(period * NS)
     buffer = SetpointBuffer(machine)
     drives = DriveModel(machine, period, plan.joints)
-    corners = {j: lagging_corner(machine.drives[j]) for j in plan.joints}
-    exact = all(corners[j] == replace(machine.drives[j], noise=0.0) for j in plan.joints)  # a closed tolerance
-    lagging = None if exact else DriveModel(machine, period, plan.joints, drives=corners)
     limit = drives.following_error_limit
+    # (model, who it is, what to do): the described drives, and where the tolerance is open
+    # the ones inside it that lag most
+    checks = [(drives, "the drive", "")]
+    corners = {j: lagging_corner(machine.drives[j]) for j in plan.joints}
+    if not all(corners[j] == replace(machine.drives[j], noise=0.0) for j in plan.joints):
+        checks.append((DriveModel(machine, period, plan.joints, drives=corners), "a drive inside the tolerance",
+                       ": raise following_error_limit or narrow the drive's tolerance"))
     now_ns, state = 0, None
     for lo in range(0, n, block):
         k = np.arange(lo, min(n, lo + block))
         p, v, a = plan.sample(k * period)
         if state is None:  # the plan starts where the axes stand, the drives settled there
-            for model in (drives, lagging):
-                if model is not None:
-                    model.reset(p[0])
-                    model.state.velocity = v[0].copy()
+            for model, _, _ in checks:
+                model.reset(p[0])
+                model.state.velocity = v[0].copy()
             state = (p[0], v[0])
         try:
             # Each block continues the one before, as the bridge's chunks continue each other.
             buffer.validate(list(plan.joints), k * period_ns, p, v, a, now_ns, state)
         except SetpointError as err:
             raise JobError(field, f"the plan breaks the bridge's setpoint rules: {err}") from err
-        measured, _, error = drives.run(p, v, a)
-        tripped = np.greater(np.abs(error), limit, order="F")  # down each joint's column (SetpointBuffer.outside_travel)
-        if tripped.any():  # argwhere only then: it scans the whole block even when nothing is wrong
-            i, j = np.argwhere(tripped)[0]
-            raise JobError(field, f"{plan.joints[j]}: the drive would trip its following error limit "
-                                  f"({abs(error[i, j]):.6g} > {limit[j]:.6g}) at {k[i] * period:.3f} s of the plan")
-        if lagging is not None:
-            error = lagging.run(p, v, a)[2]
-            tripped = np.greater(np.abs(error), limit, order="F")
-            if tripped.any():
+        runs = [model.run(p, v, a) for model, _, _ in checks]
+        for (_, who, advice), (_, _, error) in zip(checks, runs):
+            tripped = np.greater(np.abs(error), limit, order="F")  # per joint's column (SetpointBuffer.outside_travel)
+            if tripped.any():  # argwhere only then: it scans the whole block even when nothing is wrong
                 i, j = np.argwhere(tripped)[0]
-                raise JobError(field, f"{plan.joints[j]}: a drive inside the tolerance would trip its following error "
-                                      f"limit ({abs(error[i, j]):.6g} > {limit[j]:.6g}) at {k[i] * period:.3f} s of the "
-                                      "plan: raise following_error_limit or narrow the drive's tolerance")
+                raise JobError(field, f"{plan.joints[j]}: {who} would trip its following error limit "
+                                      f"({abs(error[i, j]):.6g} > {limit[j]:.6g}) at {k[i] * period:.3f} s of the plan"
+                                      + advice)
+        measured = runs[0][0]
         outside = buffer.outside_travel(measured)
         if outside.any():
             i, j = np.argwhere(outside)[0]

@@ -56,21 +56,21 @@ class ProgramRow:
 
 def program_rows(only: str | None = None) -> list[ProgramRow]:
     """The files of config/programs/ (those whose name matches ``only``), in name order."""
-    rows = []
-    for path in sorted(PROGRAMS.glob("*.ngc")):
-        if only and not re.search(only, path.stem):
-            continue
-        text = path.read_text()
-        machine = machine_named(text)
-        row = ProgramRow(path.stem, path, machine, text, [], {})
-        first = parse_job(row.doc()).program.operations[0][2]
-        if first["kind"] != "move" or "rapid" not in first["move"][0]:
-            raise ValueError(f"{path.name}: the first operation must be a rapid (the start both sides share)")
-        row.start = dict(first["move"][0]["rapid"])
-        # from there (the program's start block), that rapid is no operation: as our side runs it
-        row.operations = [(line, op.kind, doc) for line, op, doc in parse_job(row.doc()).program.operations]
-        rows.append(row)
-    return rows
+    return [program_row(path) for path in sorted(PROGRAMS.glob("*.ngc")) if not only or re.search(only, path.stem)]
+
+
+def program_row(path: Path) -> ProgramRow:
+    """One .ngc file as both sides run it: from where its first rapid goes, as our front end
+    reads it (its machine named in the file)."""
+    text = path.read_text()
+    row = ProgramRow(path.stem, path, machine_named(text), text, [], {})
+    first = parse_job(row.doc()).program.operations[0][2]
+    if first["kind"] != "move" or "rapid" not in first["move"][0]:
+        raise ValueError(f"{path.name}: the first operation must be a rapid (the start both sides share)")
+    row.start = dict(first["move"][0]["rapid"])
+    # from there (the program's start block), that rapid is no operation: as our side runs it
+    row.operations = [(line, op.kind, doc) for line, op, doc in parse_job(row.doc()).program.operations]
+    return row
 
 
 def _windows_ours(t: np.ndarray, marks: list[tuple[int, float]], count: int) -> list[np.ndarray]:
@@ -140,15 +140,22 @@ def our_side(row: ProgramRow, variants: dict, run_over_topics, judge) -> dict:
     return out
 
 
+def linuxcnc_recording(row: ProgramRow, sessions: dict) -> linuxcnc_side.Recording | str:
+    """LinuxCNC's recording of the file, or why there is none."""
+    session = sessions.get(row.machine)
+    rec = session.recordings.get(row.linuxcnc_program().name) if session else None
+    if rec is None:
+        return sessions.get("error") or "not recorded"
+    if rec.errors or not rec.finished:
+        return "; ".join(rec.errors) or "did not finish"
+    return rec
+
+
 def linuxcnc_figures(row: ProgramRow, sessions: dict, machine, judge) -> dict:
     """'fb' (through our drive model) and 'raw' (the ideal loop) figures, or 'error'."""
-    session = sessions.get(row.machine)
-    prog = row.linuxcnc_program()
-    rec = session.recordings.get(prog.name) if session else None
-    if rec is None:
-        return {"error": sessions.get("error") or "not recorded"}
-    if rec.errors or not rec.finished:
-        return {"error": "; ".join(rec.errors) or "did not finish"}
+    rec = linuxcnc_recording(row, sessions)
+    if isinstance(rec, str):
+        return {"error": rec}
     fb = analysis.through_servo(rec.t, rec.axes, machine)
     return {"fb": judge_recording(judge, row, rec.t, fb, rec.spindle, machine, line=rec.line),
             "raw": judge_recording(judge, row, rec.t, rec.axes, rec.spindle, machine, line=rec.line)}

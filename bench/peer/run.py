@@ -17,7 +17,8 @@ recording goes through our drive model; both go through the same analysis code
 --keep DIR keeps LinuxCNC's work directories (configs, programs, samples) in DIR;
 --reuse DIR analyses the sessions kept there instead of running LinuxCNC again;
 --only REGEX runs the rows whose name matches. Writes bench/results/peer.txt (--only deep
-replaces just its deep-hole section).
+replaces just its deep-hole section, --only bolt_circle just the parameterised program's:
+test/programs/bolt_circle_while.ngc, bench/peer/parameterised.py).
 """
 from __future__ import annotations
 
@@ -49,6 +50,7 @@ import gcode  # noqa: E402
 import linuxcnc_side  # noqa: E402
 import oracle  # noqa: E402
 import ours  # noqa: E402
+import parameterised  # noqa: E402
 import programs  # noqa: E402
 from rows import THREAD_CLEARANCE_MM, Row, all_rows  # noqa: E402
 
@@ -270,12 +272,13 @@ def deep_section(rows: list[Row], lc: dict, us: dict) -> list[str]:
     return lines
 
 
-def splice_deep_section(section: list[str]) -> None:
-    """Replace the deep-hole section of peer.txt (a rerun of that row alone, --only deep)."""
+def splice_section(header: str, section: list[str], only: str) -> None:
+    """Replace the section of peer.txt that starts with ``header`` (its lines after the first
+    indented), as a rerun of that row alone (--only) makes it; a new one goes before the notes."""
     old = RESULTS.read_text().splitlines() if RESULTS.exists() else []
-    note = f"  (this section rerun alone on {time.strftime('%Y-%m-%d')}: run.py --only deep; the rest is older)"
+    note = f"  (this section rerun alone on {time.strftime('%Y-%m-%d')}: run.py --only {only}; the rest is older)"
     section = section + [note]
-    start = next((k for k, line in enumerate(old) if line.startswith(DEEP_HEADER)), None)
+    start = next((k for k, line in enumerate(old) if line.startswith(header)), None)
     if start is None:  # before the notes, after a blank line
         start = end = next((k for k, line in enumerate(old) if line.startswith("LC s:")), len(old))
         section = section + [""]
@@ -437,15 +440,16 @@ def main() -> int:
 
     rows = [r for r in all_rows() if not args.only or re.search(args.only, r.name)]
     prows = programs.program_rows(args.only)
+    param = parameterised.rows(args.only)
     version = linuxcnc_side.installed_version() + " (recording reused)"
     if not args.reuse:
         version = linuxcnc_side.ensure_installed()
         linuxcnc_side.ensure_user()
     tmp = Path(tempfile.mkdtemp(prefix="bench-peer-"))
     workroot = args.reuse or args.keep or tmp
-    variants = {name: ours.machines(name, tmp / "machines") for name in {r.machine for r in [*rows, *prows]}}
+    variants = {name: ours.machines(name, tmp / "machines") for name in {r.machine for r in [*rows, *prows, *param]}}
     sessions: dict = {}
-    worker = threading.Thread(target=run_linuxcnc, args=(rows, prows, workroot, bool(args.reuse), sessions, log))
+    worker = threading.Thread(target=run_linuxcnc, args=(rows, prows + param, workroot, bool(args.reuse), sessions, log))
     worker.start()
     us, bounds = {}, {}
     for row in rows:
@@ -458,8 +462,22 @@ def main() -> int:
         us_p[prow.name] = programs.our_side(prow, variants, ours.run_over_topics, judge)
         log(f"ours: program {prow.name}: " + ", ".join(f"{k} {v['time']:.3f} s" if "time" in v else f"{k} failed"
                                                         for k, v in us_p[prow.name].items()))
+    param_outputs: dict[str, str] = {}
+    interpret = oracle.recording(oracle.rs274, param_outputs)
+    ends = {p.name: parameterised.feed_ends(p, interpret, load_machine(p.machine)) for p in param}
+    us_q = {}
+    for p in param:
+        us_q[p.name] = parameterised.our_side(p, variants, ours.run_over_topics, judge, ends[p.name])
+        log(f"ours: parameterised {p.name}: " + ", ".join(f"{k} {v['time']:.3f} s" if "time" in v else f"{k} failed"
+                                                          for k, v in us_q[p.name].items()))
     checks, outputs = program_checks(prows)
     worker.join()
+    param_lines = []
+    for p in param:
+        lc_q = parameterised.linuxcnc_side(p, sessions, load_machine(p.machine), judge, ends[p.name])
+        check = oracle.check_program(p.name, p.text, p.operations, interpret)
+        param_lines += parameterised.section(p, lc_q, us_q[p.name], ends[p.name], check)
+    outputs.update(param_outputs)
     lc = {row.name: linuxcnc_figures(row, sessions) for row in rows}
     lc_p = {p.name: programs.linuxcnc_figures(p, sessions, load_machine(p.machine), judge) for p in prows}
     lines = [f"LinuxCNC {version} (linuxcnc-uspace, headless sim, servo 1 ms) vs our planner: same jobs, "
@@ -469,6 +487,7 @@ def main() -> int:
     lines += ["", *deep] if deep else []
     if prows:
         lines += ["", *programs.table(prows, lc_p, us_p), *program_notes(), "", *checks]
+    lines += ["", *param_lines] if param_lines else []
     if sessions.get("error"):
         lines.append(f"LinuxCNC failed: {sessions['error']}")
     lines += ["", *notes(rows, lc, us, sessions)]
@@ -481,9 +500,11 @@ def main() -> int:
         if outputs:
             oracle.RECORDED.write_text(json.dumps(outputs, indent=0, sort_keys=True) + "\n")
             log(f"written {oracle.RECORDED.relative_to(ROOT)}")
-    elif deep and all(r.kind == "deep" for r in rows) and not sessions.get("error"):
-        splice_deep_section(deep)
-        log(f"deep-hole section spliced into {RESULTS.relative_to(ROOT)}")
+    elif not prows and all(r.kind == "deep" for r in rows) and not sessions.get("error"):
+        for header, section in ((DEEP_HEADER, deep), (parameterised.HEADER, param_lines)):
+            if section:
+                splice_section(header, section, args.only)
+                log(f"section {header!r} spliced into {RESULTS.relative_to(ROOT)}")
     shutil.rmtree(tmp, ignore_errors=True)  # machines, the topics check; LinuxCNC's unless --keep
     log("done")
     return 0 if "error" not in sessions else 1

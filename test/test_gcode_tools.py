@@ -112,7 +112,7 @@ def test_g10_sets_a_tool_length_or_touches_one_off():
     assert ops[1][1].tool.diameter == pytest.approx(6e-3)
     _, _, last = ops[-1]
     assert last["move"][-1]["linear"] == {"x": 1.0, "y": 0.0, "z": 2.0}  # the axis stayed; its reading is Z2
-    for text, reason in (("G10 L2 P1 X5", "line 6: G10 L2: work offsets come with the job"),
+    for text, reason in (("G10 L2 P10 X5", "line 6: P10: names no coordinate system"),
                          ("G10 L11 P1 Z1", "line 6: G10 L11: the G59.3 fixture's offsets are the machine's"),
                          ("G10 L1 P1 X1 Z5", "line 6: X1: only the Z length is applied"),
                          ("G10 L1 P7 Z5", "line 6: P7: no such tool in the tool table")):

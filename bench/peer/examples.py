@@ -10,9 +10,10 @@ with the spindle off, a work offset (G55..) the job gives no values for. The fil
 installed, never copied; bench/results/linuxcnc_examples.json keeps each one's sha256,
 outcome and rs274's verdict, and test/test_gcode_examples.py checks the outcomes.
 
-Our own must-show programs (test/programs/*.ngc) go through rs274 -g with the machine's tool
-table (``-t``); its outputs are kept in bench/results/rs274_examples.json by each program's
-sha256, for the test to compare LinuxCNC's feed moves with our plan without LinuxCNC.
+Our own must-show programs (test/programs/*.ngc) and the front end's oracle programs
+(test/gcode_oracle/*.ngc) go through rs274 -g with the machine's tool table (``-t``); its
+outputs are kept in bench/results/rs274_examples.json by each program's sha256, for the
+tests to compare LinuxCNC's feed moves with our plan without LinuxCNC.
 
     apt-get install linuxcnc-uspace
     .venv/bin/python bench/peer/examples.py      # writes bench/results/linuxcnc_examples.json
@@ -29,6 +30,7 @@ NCFILES = Path("/usr/share/linuxcnc/ncfiles")
 RESULTS = Path(__file__).resolve().parents[1] / "results" / "linuxcnc_examples.json"
 RS274_RECORDED = Path(__file__).resolve().parents[1] / "results" / "rs274_examples.json"
 MUST_SHOW = Path(__file__).resolve().parents[2] / "test" / "programs"
+ORACLE_PROGRAMS = Path(__file__).resolve().parents[2] / "test" / "gcode_oracle"  # coordinate systems, G70/G72, ...
 LATHE = ("lathe", "g76.ngc", "threading.ngc")  # programs for a lathe (X/Z, G7/G18, threads)
 LEFT_OUT = {
     "gridprobe.ngc": "probing (G38.2)", "probe-hole.ngc": "probing (G38.x)", "smartprobe.ngc": "probing (G38.5)",
@@ -44,8 +46,9 @@ LEFT_OUT = {
 }
 MACHINE_REASONS = ("outside its travel", "has no", "exceeds the spindle", "cannot run")
 # the program asks for what the machine must not do or the job does not give: drilling with
-# the spindle off, a work offset the job has no values for
-PROGRAM_REASONS = ("the spindle is off", "no such work offset")
+# the spindle off, a work offset the job has no values for, a position it takes from where the
+# machine happens to stand (G92 before any move, without program.start)
+PROGRAM_REASONS = ("the spindle is off", "no such work offset", "position is unknown here")
 
 
 def machine_of(name: str) -> str:
@@ -106,11 +109,12 @@ def rs274(path: Path, machine: str) -> str:
 
 
 def record_must_show() -> dict[str, str]:
-    """rs274 -g's output of each program of test/programs/, by the program's sha256."""
+    """rs274 -g's output of each program of test/programs/ and test/gcode_oracle/, by the
+    program's sha256."""
     import oracle  # bench/peer/oracle.py, beside this script
     from cnc_msgs_py.gcode import machine_named
     return {oracle._key(path.read_text()): rs274(path, machine_named(path.read_text()) or "mill3")
-            for path in sorted(MUST_SHOW.glob("*.ngc"))}
+            for path in sorted([*MUST_SHOW.glob("*.ngc"), *ORACLE_PROGRAMS.glob("*.ngc")])}
 
 
 def main() -> int:

@@ -13,14 +13,15 @@ MOTION = {0.0, 1.0, 2.0, 3.0, 71.0, 72.0, 73.0, 76.0, 80.0, 81.0, 82.0, 83.0}
 DRILL_CYCLES = {73.0, 81.0, 82.0, 83.0}
 G_GROUPS: dict[float, str] = {
     **{g: "motion" for g in MOTION},
-    4.0: "non-modal", 10.0: "non-modal",
+    4.0: "non-modal", 10.0: "non-modal", 52.0: "non-modal", 53.0: "non-modal",
+    92.0: "non-modal", 92.1: "non-modal", 92.2: "non-modal", 92.3: "non-modal",
     17.0: "plane", 18.0: "plane", 19.0: "plane",
     7.0: "lathe diameter", 8.0: "lathe diameter",
     20.0: "units", 21.0: "units",
     40.0: "cutter compensation",
     43.0: "tool length", 49.0: "tool length",
     54.0: "work offset", 55.0: "work offset", 56.0: "work offset", 57.0: "work offset", 58.0: "work offset",
-    59.0: "work offset",
+    59.0: "work offset", 59.1: "work offset", 59.2: "work offset", 59.3: "work offset",
     61.0: "path control", 61.1: "path control", 64.0: "path control",
     90.0: "distance", 91.0: "distance",
     90.1: "arc distance", 91.1: "arc distance",

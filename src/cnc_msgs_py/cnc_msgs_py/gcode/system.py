@@ -9,12 +9,13 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from .expressions import ExprError
+from .offsets import SYSTEMS
+from .parameters import OFFSETS
 
 if TYPE_CHECKING:
     from .translate import Translator
 
 POSITION_AXES = "xyzabcuvw"
-WORK_OFFSETS = ("G54", "G55", "G56", "G57", "G58", "G59")
 
 
 def _position(tr: "Translator", axis: str, word: str) -> float:
@@ -42,7 +43,7 @@ def named(tr: "Translator", name: str) -> float:
         "_metric": float(not s.inch), "_imperial": float(s.inch),
         "_absolute": float(not s.incremental), "_incremental": float(s.incremental),
         "_inverse_time": 0.0, "_units_per_minute": float(not s.per_rev), "_units_per_rev": float(s.per_rev),
-        "_coord_system": 540.0 + 10.0 * WORK_OFFSETS.index(s.work_offset),
+        "_coord_system": float(s.work_offset[1:].replace(".", "")) * (1.0 if "." in s.work_offset else 10.0),
         "_tool_offset": float(s.length_offset), "_retract_r_plane": float(not s.retract_initial),
         "_retract_old_z": float(s.retract_initial), "_spindle_rpm_mode": 1.0, "_spindle_css_mode": 0.0,
         "_ijk_absolute_mode": float(s.arc_absolute), "_lathe_diameter_mode": float(s.diameter),
@@ -57,12 +58,15 @@ def named(tr: "Translator", name: str) -> float:
 
 
 def numbered(tr: "Translator", n: int) -> float:
-    """#5220 and #5400 and up: the work offset, the tool, the position."""
+    """#5210-#5390 (G92 and the coordinate systems, offsets.Offsets.read), #5220 and #5400 and
+    up: the system in force, the tool, the position."""
     s = tr.state
     tool = tr.tool_entry(s.tool)
     scale = 1.0 / 25.4 if s.inch else 1.0
     if n == 5220:
-        return float(WORK_OFFSETS.index(s.work_offset) + 1)
+        return float(SYSTEMS.index(s.work_offset) + 1)
+    if n in OFFSETS:
+        return tr.offsets.read(n)
     if n == 5400:
         return float(s.tool)
     if n == 5403:

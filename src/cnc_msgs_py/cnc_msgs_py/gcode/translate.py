@@ -7,10 +7,9 @@ in it: a word nothing uses is refused, as is everything this front end does not 
 """
 from __future__ import annotations
 
-import copy
 from dataclasses import dataclass, field
 
-from . import arcs, system
+from . import arcs, offsets, system
 from .control import Executor
 from .drilling import hole
 from .lathe import g71, g76
@@ -84,6 +83,7 @@ class Translator:
         self.params = Parameters(lambda name: system.named(self, name), lambda n: system.numbered(self, n))
         self.line = 0  # the line running, for #<_line>
         self.tools = {n: dict(entry) for n, entry in ctx.tool_table.items()}  # G10 L1/L10 edit this copy
+        self.offsets = offsets.Offsets(ctx.setup, ctx.work_offsets)  # G10 L2/L20, G92, G52 edit these
 
     # ---- the program
     def run(self, text: str) -> list[Operation]:
@@ -201,12 +201,9 @@ class Translator:
             s.length_offset = True
         if 49.0 in g:
             s.length_offset = False
-        for w in (54.0, 55.0, 56.0, 57.0, 58.0, 59.0):
+        for w in (54.0, 55.0, 56.0, 57.0, 58.0, 59.0, 59.1, 59.2, 59.3):
             if w in g:
-                name = word_text("G", w)
-                if name != "G54" and name not in self.ctx.work_offsets:
-                    raise GcodeError(b.line, name, "no such work offset given with the program (work_offsets)")
-                s.work_offset = name
+                offsets.select(self, b, w)
         if 90.0 in g or 91.0 in g:
             s.incremental = 91.0 in g
         if 90.1 in g or 91.1 in g:
@@ -219,6 +216,8 @@ class Translator:
             self._dwell(b, used)
         if 10.0 in g:
             self._g10(b, used)  # its axis words are data, not motion
+        elif any(c in g for c in offsets.OFFSET_CODES):
+            offsets.g92(self, b, used, next(c for c in g if c in offsets.OFFSET_CODES))
         else:
             self._motion(b, g, used)
         return 2.0 in m or 30.0 in m
@@ -229,10 +228,12 @@ class Translator:
         program's copy: the job's table is not changed."""
         s = self.state
         level = b.words.get("L")
+        if level in (2.0, 20.0):
+            offsets.g10(self, b, used, level)
+            return
         if level not in (1.0, 10.0):
             why = ("the G59.3 fixture's offsets are the machine's" if level == 11.0 else
-                   "work offsets come with the job (setup, program.work_offsets)" if level in (2.0, 20.0) else
-                   "needs L1 or L10 (tool table entries)")
+                   "needs L1, L10 (tool table entries), L2 or L20 (coordinate systems)")
             raise GcodeError(b.line, "G10" if level is None else f"G10 L{level:g}", why)
         if "P" not in b.words:
             raise GcodeError(b.line, f"G10 L{level:g}", "needs P, the tool")
@@ -313,6 +314,8 @@ class Translator:
                 k = next(k for k in "XYZ" if k in b.words)
                 raise GcodeError(b.line, word_text(k, b.words[k]), "no motion mode in force (give G0 or G1)")
             return
+        if 53.0 in g and s.motion not in (0.0, 1.0):
+            raise GcodeError(b.line, "G53", "needs G0 or G1 in force (machine coordinates are for straight moves)")
         if s.motion in DRILL_CYCLES:
             if b.has_axes() or motion is not None:
                 self._hole(b, used)
@@ -320,9 +323,9 @@ class Translator:
         full_circle = s.motion in (2.0, 3.0) and any(k in b.words for k in "IJK")
         if not b.has_axes() and not full_circle:
             return
-        if s.motion in (0.0, 1.0):
+        if s.motion in (0.0, 1.0) or 53.0 in g:
             before = dict(s.position)
-            target = self._target(b, used)
+            target = offsets.g53_target(self, b, used) if 53.0 in g else self._target(b, used)
             if target == before:
                 return  # no motion: the tool is there already (our cycles end where LinuxCNC's return to)
             if s.motion == 0.0:
@@ -399,13 +402,12 @@ class Translator:
     # ---- operations
     def _common(self, kind: str) -> dict:
         s = self.state
-        setup = self.ctx.setup if s.work_offset == "G54" else self.ctx.work_offsets[s.work_offset]
         tool = dict(self.tool_entry(s.tool))
         tool.pop("length", None)
         if self.applied_length():
             tool["length"] = self.applied_length()
         doc = {"schema": "cnc_job/1", "job_id": "", "kind": kind, "machine": self.ctx.machine,
-               "tool": tool, "setup": copy.deepcopy(setup), "spindle_rpm": s.speed if s.spindle_on else 0.0}
+               "tool": tool, "setup": self.offsets.setup(s.work_offset), "spindle_rpm": s.speed if s.spindle_on else 0.0}
         return doc
 
     def _begin(self, line: int, kind: str, key: tuple, block: dict | list) -> dict | list:
@@ -433,7 +435,7 @@ class Translator:
     def _key(self) -> tuple:
         s = self.state
         vib = None if self.vibration is None else tuple(sorted(self.vibration.items()))
-        return (s.tool, self.applied_length(), s.work_offset, s.speed if s.spindle_on else 0.0, vib)
+        return (s.tool, self.applied_length(), self.offsets.key(s.work_offset), s.speed if s.spindle_on else 0.0, vib)
 
     def _move(self, line: int, entry: dict) -> None:
         self._begin(line, "move", self._key(), []).append(entry)

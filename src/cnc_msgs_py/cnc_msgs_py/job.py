@@ -56,6 +56,15 @@ VIBRATION = VibrationSpec({
     "D_step": Num("1", min=0.0, max=10.0, default=0.0),
 }, default=None)
 
+# Constant surface speed (G96 D S): the cutting speed at the tool's radius, m/min, and the rpm
+# it may never exceed (D; without it the machine's spindle limit caps). Instead of spindle_rpm,
+# on the kinds that turn along x on a lathe (turn, move); the others turn at one rpm and
+# refuse it by name (their ``unused``).
+SURFACE_SPEED = Obj({
+    "m_min": Num("m/min", gt=0.0, min=1.0, max=3000.0),
+    "max_rpm": Num("rpm", min=MIN_RPM, max=100_000.0, default=None),
+}, default=None)
+
 JOB = Obj({
     "schema": Str((SCHEMA,)),
     "job_id": Str(pattern=r"[A-Za-z0-9_.:-]{1,64}"),
@@ -74,6 +83,7 @@ JOB = Obj({
         "work_offset": Str(pattern=r"[A-Za-z0-9_.-]{1,64}", default=None),
     }, default={}),
     "spindle_rpm": Num("rpm", min=0.0, max=100_000.0, default=0.0),
+    "surface_speed": SURFACE_SPEED,
     **{name: KIND_SCHEMAS[name].block for name in BLOCK_ORDER},
     "vibration": VIBRATION,
 })
@@ -108,7 +118,15 @@ def _check_common(job: SimpleNamespace, kind: KindSchema) -> None:
             raise JobError(other, f"not allowed in a '{kind.name}' job")
     if 0.0 < job.spindle_rpm < rpm(MIN_RPM):
         raise JobError("spindle_rpm", f"must be 0 (spindle off) or at least {MIN_RPM:g} rpm")
-    if kind.needs_spindle and job.spindle_rpm <= 0.0:
+    if job.surface_speed is not None:
+        if "surface_speed" in kind.unused:  # before the kind's own rules, which read spindle_rpm
+            raise JobError("surface_speed", f"not used by a {kind.name} job: {kind.unused['surface_speed']}")
+        if job.spindle_rpm > 0.0:
+            raise JobError("spindle_rpm", "give spindle_rpm or surface_speed, not both (the surface speed sets the rpm)")
+        if job.vibration is not None:
+            raise JobError("vibration", "a vibration is locked to one spindle speed: not with surface_speed "
+                                        "(give spindle_rpm)")
+    elif kind.needs_spindle and job.spindle_rpm <= 0.0:
         raise JobError("spindle_rpm", f"must be > 0 for a {kind.name} job")
     if job.vibration is not None:
         _check_vibration(job.vibration, kind)

@@ -31,6 +31,16 @@ def to_mm_per_min(value_m_s: float) -> float:
     return value_m_s * 60.0 / M_PER_MM
 
 
+def m_per_min(value: float) -> float:
+    """A cutting (surface) speed in m/min to m/s."""
+    return value / 60.0
+
+
+def to_m_per_min(value_m_s: float) -> float:
+    """A cutting (surface) speed in m/s to m/min."""
+    return value_m_s * 60.0
+
+
 def rpm(value: float) -> float:
     """Spindle speed in rev/min to rad/s."""
     return value * 2.0 * math.pi / 60.0
@@ -55,7 +65,8 @@ def to_deg(value_rad: float) -> float:
 CONVERTERS = {
     "mm": mm,
     "mm/min": mm_per_min,
-    "mm/rev": mm,  # a length per revolution: the revolution stays, the length goes SI
+    "mm/rev": mm,
+    "m/min": m_per_min,  # surface (cutting) speed, as G96's S  # a length per revolution: the revolution stays, the length goes SI
     "rpm": rpm,
     "deg": deg,
     "1": float,

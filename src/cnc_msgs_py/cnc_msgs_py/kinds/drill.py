@@ -80,5 +80,6 @@ def check_given(doc: dict, job: SimpleNamespace) -> None:
 
 KIND = KindSchema(
     "drill", DRILL, check, check_given=check_given, needs_spindle=True,
-    unused={"tool.nose_radius": "a drill has no nose radius (it is a lathe insert's)", **THREAD_ONLY_VIBRATION},
+    unused={"tool.nose_radius": "a drill has no nose radius (it is a lathe insert's)", **THREAD_ONLY_VIBRATION,
+            "surface_speed": "a drill turns at one rpm (spindle_rpm): constant surface speed is for turning"},
 )

@@ -19,7 +19,8 @@ MOVE = List(Obj({
 
 def check(job: SimpleNamespace) -> None:
     """Each move is one of rapid, linear, dwell, and only a linear one takes a feed; a move job
-    needs no spindle unless it vibrates."""
+    needs no spindle unless it vibrates. At a surface speed it only positions (rapids, dwells):
+    the spindle follows the tool's radius between cuts (G96 in force around a G71)."""
     for i, move in enumerate(job.move):
         given = [k for k in ("rapid", "linear", "dwell") if getattr(move, k) is not None]
         if len(given) != 1:
@@ -30,6 +31,9 @@ def check(job: SimpleNamespace) -> None:
             raise JobError(f"move[{i}].feed", "only a linear move takes a feed")
         if given[0] != "dwell" and not any(v is not None for v in vars(getattr(move, given[0])).values()):
             raise JobError(f"move[{i}].{given[0]}", "names no axis")
+        if move.linear is not None and job.surface_speed is not None:
+            raise JobError(f"move[{i}].linear", "feed moves at constant surface speed are not supported yet (turn "
+                                                "jobs cut at it): give spindle_rpm")
     if job.vibration is not None and job.spindle_rpm <= 0.0:
         raise JobError("spindle_rpm", "must be > 0 when a vibration is given")
 

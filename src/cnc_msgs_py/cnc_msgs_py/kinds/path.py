@@ -20,4 +20,5 @@ def check(job: SimpleNamespace) -> None:
         raise JobError("path.tool_axis", "needs one vector per point")
 
 
-KIND = KindSchema("path", PATH, check, unused=THREAD_ONLY_VIBRATION)
+KIND = KindSchema("path", PATH, check, unused={**THREAD_ONLY_VIBRATION, "surface_speed": "constant surface speed is "
+                                              "for turning on a lathe (turn and move jobs)"})

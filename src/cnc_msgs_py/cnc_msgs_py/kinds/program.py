@@ -75,6 +75,7 @@ KIND = KindSchema(
     "program", PROGRAM, check, check_given=translate_program,
     unused={"tool": "the program's tool table and T words give the tool",
             "spindle_rpm": "the program's S and M3 words give the speed",
+            "surface_speed": "the program's G96 D S words give it",
             "vibration": "the program's (CNC,VIBRATION ...) comments give it",
             "setup.work_offset": "G54..G59 select the program's work offsets"},
 )

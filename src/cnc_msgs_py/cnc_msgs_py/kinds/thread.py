@@ -40,4 +40,6 @@ def check(job: SimpleNamespace) -> None:
 
 
 # A thread uses every vibration key: it shifts the phase and raises D from pass to pass.
-KIND = KindSchema("thread", THREAD, check, needs_spindle=True, lathe_tool=True)
+KIND = KindSchema("thread", THREAD, check, needs_spindle=True, lathe_tool=True,
+                  unused={"surface_speed": "a thread turns at one rpm (spindle_rpm): its lead is locked to the "
+                                           "spindle angle, pass after pass"})

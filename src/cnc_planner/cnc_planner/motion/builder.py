@@ -105,6 +105,12 @@ class PlanBuilder:
         self.spindle_ready = begin + move.duration
         return self.spindle_ready
 
+    def spindle_after(self, speed: float) -> float:
+        """Change the spindle's speed once the axes' moves so far are done (S between a
+        program's operations, a new rpm at constant surface speed): ``spindle`` alone ramps
+        from the spindle's last change, which may lie inside moves planned at the old speed."""
+        return self.spindle(speed, start=max(self.end_time(), self.timelines[SPINDLE].end_time))
+
     def build(self, stop_spindle: bool = True) -> Plan:
         """The finished plan; the spindle is stopped at the end if still turning, unless
         another segment of the same job follows. Corrections still carried (a vibrated

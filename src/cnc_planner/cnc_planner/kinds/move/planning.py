@@ -8,6 +8,7 @@ from cnc_msgs_py.machine import Machine
 
 from cnc_planner.kinematics import Kinematics
 from cnc_planner.motion.builder import PlanBuilder
+from cnc_planner.motion.surface_speed import radius_of, ramp_to_radius, surface_speed_of
 from cnc_planner.travel import check_travel, program_axes, to_axes
 from cnc_planner.vibration.feed import TWO_PI, feed_move, vibration_of
 
@@ -34,11 +35,20 @@ def move_targets(job: SimpleNamespace, machine: Machine, kin: Kinematics,
 
 
 def plan_move(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin: Kinematics) -> None:
-    """A list of rapid, linear and dwell moves in absolute program coordinates."""
-    targets = move_targets(job, machine, kin, {j: builder.position(j) for j in machine.linear_axes})
+    """A list of rapid, linear and dwell moves in absolute program coordinates.
+
+    At a surface speed (G96 around a G71; the schema lets only rapids and dwells have one) the
+    spindle starts at the speed for where the tool stands and, from each rapid's start, ramps
+    to the speed for its end point, as Fanuc's G96 computes a rapid's rpm (cnc_planner.motion.
+    surface_speed)."""
+    here = {j: builder.position(j) for j in machine.linear_axes}
+    targets = move_targets(job, machine, kin, here)
     vibration = vibration_of(job)
+    css = surface_speed_of(job, machine)
     if job.spindle_rpm > 0:
         builder.spindle(job.spindle_rpm)
+    elif css is not None:
+        ramp_to_radius(builder, css, radius_of(kin, {}, here))
     for i, (move, axes) in enumerate(zip(job.move, targets)):
         start = builder.end_time()
         if axes is None:
@@ -50,6 +60,8 @@ def plan_move(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin:
         start = builder.free_from(builder.moving(axes) if kind == "rapid" else list(axes))  # as the move starts
         builder.event(start if kind == "rapid" else max(start, builder.spindle_ready), kind, move=i)
         if kind == "rapid":
+            if css is not None:
+                ramp_to_radius(builder, css, radius_of(kin, axes, {j: builder.position(j) for j in machine.linear_axes}))
             builder.rapid(axes)
         elif vibration is None:
             builder.linear(axes, move.feed)

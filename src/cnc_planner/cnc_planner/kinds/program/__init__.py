@@ -22,15 +22,6 @@ def kinds() -> dict:
     return KINDS
 
 
-def _spindle_to(builder: PlanBuilder, speed: float) -> None:
-    """Change the spindle's speed (S, M5) where the previous operation ended. A kind ramps
-    its spindle from the end of the spindle's last change, which in a fresh plan is the
-    start; here that lies inside the previous operation, which must run at its own speed."""
-    spindle = builder.timelines[SPINDLE]
-    if abs(spindle.end_velocity - speed) > 1e-12:
-        builder.spindle(speed, start=max(builder.end_time(), spindle.end_time))
-
-
 def plan_program(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin: Kinematics) -> None:
     """Each operation through its kind's plan, one after the other; an operation's error
     names the program line it starts at."""
@@ -42,8 +33,8 @@ def plan_program(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, k
                 raise JobError("kind", f"a {machine.layout} machine cannot run '{op.kind}' operations")
             if op.spindle_rpm > machine.axes[SPINDLE].max_velocity:
                 raise JobError("spindle_rpm", f"exceeds the spindle's {to_rpm(machine.axes[SPINDLE].max_velocity):.0f} rpm")
-            if index > 0:
-                _spindle_to(builder, op.spindle_rpm)
+            if index > 0 and op.surface_speed is None:  # (at a surface speed the operation sets it)
+                builder.spindle_after(op.spindle_rpm)  # where the previous operation ended
             builder.event(builder.end_time(), OPERATION, index=index, kind=op.kind, line=line)
             kind.plan(op, machine, builder, Kinematics(machine, op.setup, op.tool))
         except JobError as err:

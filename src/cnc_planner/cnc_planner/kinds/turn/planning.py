@@ -6,15 +6,22 @@ from types import SimpleNamespace
 
 from cnc_msgs_py.machine import Machine
 
+from cnc_planner.kinds.turn.moves import TurnMove
 from cnc_planner.kinds.turn.roughing import plan_roughing
 from cnc_planner.kinematics import Kinematics
 from cnc_planner.motion.builder import PlanBuilder
+from cnc_planner.motion.surface_speed import css_feeds, ramp_to_radius, surface_speed_of
 from cnc_planner.travel import check_travel, to_axes
 from cnc_planner.vibration.feed import feed_move, vibration_of
 
 
 def plan_turn(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin: Kinematics) -> None:
     """Roughing with short air moves: passes start where the stock really is.
+
+    At a surface speed (``surface_speed``, G96) the spindle follows the radius as
+    cnc_planner.motion.surface_speed says: ramped during the air moves to the speed the next
+    cut starts at, stepped along a cut that changes radius; the feed per revolution holds at
+    the spindle's actual speed throughout.
 
     Bad outlines or cycle parameters raise TurningError, a JobError that names the turn field.
     """
@@ -27,18 +34,42 @@ def plan_turn(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin:
         return to_axes(kin, {"x": r, "z": z}, field)
     origin = axes_of(*t.origin, "turn.origin")
     check_travel(machine, origin, "turn.origin")
-    builder.spindle(job.spindle_rpm)
+    css = surface_speed_of(job, machine)
+    starts = [tuple(t.origin)] + [m.end for m in rough.moves[:-1]]  # (z, radius) each move starts at
+    cut_radius = _next_cut_radii(rough.moves, starts)
+    if css is None:
+        builder.spindle(job.spindle_rpm)
+    elif rough.moves:
+        ramp_to_radius(builder, css, cut_radius[0])
     builder.rapid(origin)
     vibration = vibration_of(job)
     passes = 0
-    for move in rough.moves:
+    for i, move in enumerate(rough.moves):
         target = axes_of(move.z, move.x)
         check_travel(machine, target, "turn.profile")
         start = builder.free_from(builder.moving(target) if move.kind == "rapid" else list(target))  # as it starts
         if move.kind == "rapid":
+            if css is not None and i > 0 and rough.moves[i - 1].kind == "feed":
+                ramp_to_radius(builder, css, cut_radius[i])
             builder.rapid(target)
             continue
         if move.cutting:
             builder.event(max(start, builder.spindle_ready), "pass", index=passes)
             passes += 1
-        feed_move(builder, target, t.feed, vibration if move.cutting else None, "turn")
+        if css is None:
+            feed_move(builder, target, t.feed, vibration if move.cutting else None, "turn")
+            continue
+        at = {j: builder.position(j) for j in target}
+        for piece in css_feeds(builder, css, at, target, starts[i][1], move.x):
+            feed_move(builder, piece, t.feed, None, "turn")
+
+
+def _next_cut_radii(moves: list[TurnMove], starts: list[tuple[float, float]]) -> list[float]:
+    """Per move, the radius the next feed from it on starts at (the last feed's end after it)."""
+    out: list[float] = []
+    radius = starts[-1][1] if starts else 0.0
+    for move, at in zip(reversed(moves), reversed(starts)):
+        if move.kind == "feed":
+            radius = at[1]
+        out.append(radius)
+    return out[::-1]

@@ -7,11 +7,12 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from cnc_msgs_py.machine import Machine
+from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_msgs_py.units import to_mm
 
 from cnc_analysis import summary
 from cnc_analysis.recording import Run
+from cnc_analysis.surface_speed import TOLERANCE, judge_surface_speed
 from cnc_analysis.verdict import OVERCUT_LIMIT, verdict
 
 from cnc_planner.kinds.turn.judge import max_gouge
@@ -35,6 +36,15 @@ def turn_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.nd
     tip_zx = tips(run.feedback[window])
     commanded = tips(run.command[run.command_t >= run.feedback_t[window][0]])
     gouge = max_gouge(tip_zx, args["profile"], 0.0)
+    failures = [f"gouge: the tip went {to_mm(gouge):.4f} mm into the final profile"] if gouge > OVERCUT_LIMIT else []
+    criterion = f"on feedback: the tip no deeper than {to_mm(OVERCUT_LIMIT):g} mm into the final profile"
+    passed = f"the tip stayed out of the final profile ({to_mm(gouge):.4f} mm into it) on feedback"
+    css = {}
+    if job.surface_speed is not None:
+        css = {"surface_speed": _surface_speed(run, job, machine, window, tip_zx[:, 1])}
+        failures += css["surface_speed"].pop("failures")
+        criterion += f"; the surface speed within {100 * TOLERANCE:g} % while cutting, the rpm never above the cap"
+        passed += f"; surface speed at most {css['surface_speed'].get('max_deviation_pct', 0.0):g} % off"
     return {
         **ours.to_dict(),
         "naive_path_mm": to_mm(naive.path_length),
@@ -47,8 +57,18 @@ def turn_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.nd
         "max_gouge_commanded_mm": to_mm(max_gouge(commanded, args["profile"], t.finish_allowance,
                                                   t.finish_allowance_z)),
         "cycle_time_s": summary.cycle_time(run, ("x", "z")),
-        "verdict": verdict(f"on feedback: the tip no deeper than {to_mm(OVERCUT_LIMIT):g} mm into the final profile",
-                           [f"gouge: the tip went {to_mm(gouge):.4f} mm into the final profile"]
-                           if gouge > OVERCUT_LIMIT else [],
-                           f"the tip stayed out of the final profile ({to_mm(gouge):.4f} mm into it) on feedback"),
+        **css,
+        "verdict": verdict(criterion, failures, passed),
     }
+
+
+def _surface_speed(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray, radius: np.ndarray) -> dict:
+    """The surface speed on this section's feedback (cnc_analysis.surface_speed), capped by the
+    job's max_rpm and the spindle's limit from the machine description."""
+    css = job.surface_speed
+    cap = machine.axes[SPINDLE].max_velocity if css.max_rpm is None else min(css.max_rpm,
+                                                                              machine.axes[SPINDLE].max_velocity)
+    velocity = run.feedback_velocity[window]
+    tip_speed = np.hypot(velocity[:, run.column("x")], velocity[:, run.column("z")])
+    return judge_surface_speed(run.feedback_t[window], radius, tip_speed, velocity[:, run.column(SPINDLE)],
+                               css.m_min, cap, job.turn.feed)

@@ -9,6 +9,7 @@
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
+#include <float.h>
 #include <math.h>
 #include <string.h>
 
@@ -24,6 +25,15 @@ static int take(PyObject *obj, Py_buffer *view, int writable, const char *name)
         return -1;
     }
     return 0;
+}
+
+/* A velocity below the smallest normal double is zero (its sign kept), as DriveModel.step
+ * has it: a velocity decaying at rest otherwise sticks at the smallest subnormal (0.61 of
+ * it rounds back up to it) and every later step of that joint computes on subnormals,
+ * which this FPU does 5-20 times slower: most of a drilling plan's drive-model time. */
+static inline double settled(double velocity)
+{
+    return fabs(velocity) < DBL_MIN ? 0.0 * velocity : velocity;
 }
 
 /* One joint's drive parameters. */
@@ -44,7 +54,7 @@ static inline double step(const Drive *d, double period, double p_ref, double v_
     double dv = v_new - *velocity;
     dv = dv < -d->dv_limit ? -d->dv_limit : dv;
     dv = dv > d->dv_limit ? d->dv_limit : dv;
-    v_new = *velocity + dv;
+    v_new = settled(*velocity + dv);
     *position = *position + 0.5 * (*velocity + v_new) * period;
     *velocity = v_new;
     /* numpy's round: to nearest, ties to even (rint in the default rounding mode) */
@@ -59,16 +69,16 @@ enum { MAX_IN_REGISTERS = 6 };  /* joints whose state the loop below keeps in re
  * unrolls, their state stays in registers, and each joint's chain of dependent operations
  * runs beside the others'. */
 static inline __attribute__((always_inline)) void run_fixed(
-    const Py_ssize_t joints, Py_ssize_t rows, Py_ssize_t stride, const double *restrict p_ref,
+    const Py_ssize_t joints, Py_ssize_t rows, Py_ssize_t stride, Py_ssize_t plane, const double *restrict p_ref,
     const double *restrict v_ref, const double *restrict a_ref, double *restrict position, double *restrict velocity,
     double *restrict measured, const Drive *drives, double period, double *restrict out)
 {
-    const Py_ssize_t plane = rows * stride;
+    const Py_ssize_t end = rows * stride;
     double pos[MAX_IN_REGISTERS], vel[MAX_IN_REGISTERS], meas[MAX_IN_REGISTERS];
 #pragma GCC unroll 8
     for (Py_ssize_t j = 0; j < joints; j++)
         pos[j] = position[j], vel[j] = velocity[j], meas[j] = measured[j];
-    for (Py_ssize_t k = 0; k < plane; k += stride) {
+    for (Py_ssize_t k = 0; k < end; k += stride) {
 #pragma GCC unroll 8
         for (Py_ssize_t j = 0; j < joints; j++) {
             out[k + j] = meas[j];
@@ -82,27 +92,35 @@ static inline __attribute__((always_inline)) void run_fixed(
         position[j] = pos[j], velocity[j] = vel[j], measured[j] = meas[j];
 }
 
+enum { TILE_ROWS = 256 };  /* rows run by every group before the next rows: they stay in the cache */
+
 /* DriveModel.step over every row, in place on the state; out[0..2] = measured position,
  * velocity and following error before each step. The joints go in groups of up to
- * MAX_IN_REGISTERS (every machine here is one group) with their state in registers: the
- * planner's tolerance corners are dozens of columns. The joints do not interact, so the
- * order the groups run in changes no value. */
+ * MAX_IN_REGISTERS (every machine here is one group) with their state in registers, over
+ * TILE_ROWS rows at a time: the planner's tolerance corners are dozens of columns and tens
+ * of thousands of rows, which a group at a time over every row read from memory once per
+ * group. The joints do not interact, so the order the groups and tiles run in changes no
+ * value. */
 static void run(Py_ssize_t rows, Py_ssize_t joints, const double *restrict p_ref, const double *restrict v_ref,
                 const double *restrict a_ref, double *restrict position, double *restrict velocity,
                 double *restrict measured, const Drive *drives, double period, double *restrict out)
 {
-    for (Py_ssize_t g = 0; g < joints; g += MAX_IN_REGISTERS) {
-        const Py_ssize_t n = joints - g < MAX_IN_REGISTERS ? joints - g : MAX_IN_REGISTERS;
-        const double *p = p_ref + g, *v = v_ref + g, *a = a_ref + g;
-        double *pos = position + g, *vel = velocity + g, *meas = measured + g, *o = out + g;
-        const Drive *d = drives + g;
-        switch (n) {
-        case 1: run_fixed(1, rows, joints, p, v, a, pos, vel, meas, d, period, o); break;
-        case 2: run_fixed(2, rows, joints, p, v, a, pos, vel, meas, d, period, o); break;
-        case 3: run_fixed(3, rows, joints, p, v, a, pos, vel, meas, d, period, o); break;
-        case 4: run_fixed(4, rows, joints, p, v, a, pos, vel, meas, d, period, o); break;
-        case 5: run_fixed(5, rows, joints, p, v, a, pos, vel, meas, d, period, o); break;
-        default: run_fixed(6, rows, joints, p, v, a, pos, vel, meas, d, period, o); break;
+    const Py_ssize_t plane = rows * joints;
+    for (Py_ssize_t r = 0; r < rows; r += TILE_ROWS) {
+        const Py_ssize_t tile = rows - r < TILE_ROWS ? rows - r : TILE_ROWS, at = r * joints;
+        for (Py_ssize_t g = 0; g < joints; g += MAX_IN_REGISTERS) {
+            const Py_ssize_t n = joints - g < MAX_IN_REGISTERS ? joints - g : MAX_IN_REGISTERS;
+            const double *p = p_ref + at + g, *v = v_ref + at + g, *a = a_ref + at + g;
+            double *pos = position + g, *vel = velocity + g, *meas = measured + g, *o = out + at + g;
+            const Drive *d = drives + g;
+            switch (n) {
+            case 1: run_fixed(1, tile, joints, plane, p, v, a, pos, vel, meas, d, period, o); break;
+            case 2: run_fixed(2, tile, joints, plane, p, v, a, pos, vel, meas, d, period, o); break;
+            case 3: run_fixed(3, tile, joints, plane, p, v, a, pos, vel, meas, d, period, o); break;
+            case 4: run_fixed(4, tile, joints, plane, p, v, a, pos, vel, meas, d, period, o); break;
+            case 5: run_fixed(5, tile, joints, plane, p, v, a, pos, vel, meas, d, period, o); break;
+            default: run_fixed(6, tile, joints, plane, p, v, a, pos, vel, meas, d, period, o); break;
+            }
         }
     }
 }
@@ -228,7 +246,7 @@ static inline double step_plant(const Drive *d, const Losses *l, double period, 
     double dv = v_new - *velocity;
     dv = dv < -d->dv_limit ? -d->dv_limit : dv;
     dv = dv > d->dv_limit ? d->dv_limit : dv;
-    v_new = *velocity + dv;
+    v_new = settled(*velocity + dv);
     *position = *position + 0.5 * (*velocity + v_new) * period;
     *velocity = v_new;
     const double half = 0.5 * l->backlash;

@@ -7,7 +7,8 @@ its transport delay (whole periods) after it was commanded:
     v_cmd  = velocity_ff * v_ref + accel_ff * velocity_lag * a_ref + kp * e
     v_cmd  clamped to +-VELOCITY_HEADROOM * max_velocity
     v'     = v_cmd + (v - v_cmd) * exp(-T / velocity_lag)   (velocity loop lag)
-    v'     rate-limited to +-ACCELERATION_HEADROOM * max_acceleration
+    v'     rate-limited to +-ACCELERATION_HEADROOM * max_acceleration, and 0 below the
+           smallest normal double (a decaying v' would stick at the smallest subnormal)
     p'     = p + (v + v') / 2 * T
     p_measured = p' quantised to the encoder resolution
 
@@ -42,6 +43,7 @@ from ._drive_kernel import run_plant as _run_plant
 
 VELOCITY_HEADROOM = 1.2
 ACCELERATION_HEADROOM = 1.5
+TINY = np.finfo(float).tiny  # the smallest normal double: a velocity below it is zero
 
 
 @dataclass
@@ -137,12 +139,13 @@ class DriveModel:
         depth, n = len(self.history[0]), len(p_ref)
         seen, kept = [], []
         for past, ref in zip(self.history, (p_ref, v_ref, a_ref)):
-            extended = np.concatenate((past, ref))
             out = np.empty_like(ref)
             for delay, first, last in self._delay_runs:  # a slice per run of columns of one delay
-                out[:, first:last] = extended[depth - delay:depth - delay + n, first:last]
+                held = min(delay, n)  # rows still in transit from the last call
+                out[:held, first:last] = past[depth - delay:depth - delay + held, first:last]
+                out[held:, first:last] = ref[:n - held, first:last]
             seen.append(out)
-            kept.append(extended[-depth:].copy())
+            kept.append(ref[n - depth:].copy() if n >= depth else np.concatenate((past[n:], ref)))
         self.history = tuple(kept)  # type: ignore[assignment]
         return tuple(seen)
 
@@ -166,6 +169,7 @@ class DriveModel:
         v_new = target + (s.velocity - target) * self.decay
         v_new = np.where((self.friction > 0.0) & (v_new * direction <= 0.0), 0.0, v_new)
         v_new = s.velocity + np.clip(v_new - s.velocity, -self.dv_limit, self.dv_limit)
+        v_new = np.where(np.abs(v_new) < TINY, 0.0 * v_new, v_new)  # subnormal: zero (see the kernel)
         s.position = s.position + 0.5 * (s.velocity + v_new) * self.period
         s.velocity = v_new
         s.load = np.clip(s.load, s.position - 0.5 * self.backlash, s.position + 0.5 * self.backlash)

@@ -68,7 +68,7 @@ def g76(tr: "Translator", b: Block, used: set[str]) -> None:
     # our cycle ends back at its start on the drive line
 
 
-def _profile(tr: "Translator", blocks: list[Block], start: tuple[float, float], line: int) -> list:
+def _profile(tr: "Translator", blocks: list[Block], start: tuple[float, float], line: int, cycle: str = "G71") -> list:
     """The contour's [z, radius] points and {arc_to, radius, center} arcs, from the start point."""
     s = tr.state
     z, x = start
@@ -81,14 +81,14 @@ def _profile(tr: "Translator", blocks: list[Block], start: tuple[float, float], 
             if code in (0.0, 1.0, 2.0, 3.0):
                 motion = code
             elif code not in (90.0, 91.0):
-                raise GcodeError(b.line, word_text("G", code), "not supported inside a G71 contour")
+                raise GcodeError(b.line, word_text("G", code), f"not supported inside a {cycle} contour")
         if b.m or any(k not in "XZIKRF" for k in b.words):
             k = next(iter(b.m and ["M"] or [k for k in b.words if k not in "XZIKRF"]))
-            raise GcodeError(b.line, k, "not supported inside a G71 contour")
+            raise GcodeError(b.line, k, f"not supported inside a {cycle} contour")
         if "X" not in b.words and "Z" not in b.words:
             continue
         if motion is None:
-            raise GcodeError(b.line, "X" if "X" in b.words else "Z", "no motion mode in the G71 contour (G1)")
+            raise GcodeError(b.line, "X" if "X" in b.words else "Z", f"no motion mode in the {cycle} contour (G1)")
         nx = s.length(b.words["X"]) / (2.0 if s.diameter else 1.0) if "X" in b.words else x
         nz = s.length(b.words["Z"]) if "Z" in b.words else z
         if motion in (2.0, 3.0):
@@ -107,7 +107,7 @@ def _profile(tr: "Translator", blocks: list[Block], start: tuple[float, float], 
             out.append([nz, nx])
         z, x = nz, nx
     if len(out) < 2:
-        raise GcodeError(line, "G71", "the contour needs at least two points")
+        raise GcodeError(line, cycle, "the contour needs at least two points")
     return out
 
 

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 from .lexer import Block, GcodeError, word_text
 
-MOTION = {0.0, 1.0, 2.0, 3.0, 71.0, 72.0, 73.0, 76.0, 80.0, 81.0, 82.0, 83.0}
+MOTION = {0.0, 1.0, 2.0, 3.0, 70.0, 71.0, 72.0, 73.0, 76.0, 80.0, 81.0, 82.0, 83.0}
 DRILL_CYCLES = {73.0, 81.0, 82.0, 83.0}
 G_GROUPS: dict[float, str] = {
     **{g: "motion" for g in MOTION},
@@ -33,7 +33,6 @@ G_REFUSED: dict[float, str] = {
     33.0: "use G76: single threading moves are not supported",
     41.0: "cutter radius compensation is not supported",
     42.0: "cutter radius compensation is not supported",
-    70.0: "the finishing cycle is not supported yet: G71 ends along the contour itself",
     84.0: "tapping is not supported",
     93.0: "inverse time feed is not supported",
     96.0: "constant surface speed cannot be held: an operation turns at one rpm (use G97 and S)",

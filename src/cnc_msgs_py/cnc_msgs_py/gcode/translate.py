@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from . import arcs, offsets, system
 from .control import Executor
 from .drilling import hole
+from .finishing import g70
 from .lathe import g71, g76
 from .lexer import Block, GcodeError, closed_by_percent, word_text
 from .modal import DRILL_CYCLES, MOTION, Modal, check_groups
@@ -300,7 +301,7 @@ class Translator:
             if b.has_axes():
                 raise GcodeError(b.line, "G80", "axis words with G80 and no motion to use them")
             return
-        if motion in (71.0, 72.0, 76.0):
+        if motion in (70.0, 71.0, 72.0, 76.0):
             if 4.0 in g:
                 raise GcodeError(b.line, word_text("G", motion), "cannot share a line with G4")
             self._one_shot(b, motion, used)
@@ -450,8 +451,11 @@ class Translator:
     def _one_shot(self, b: Block, motion: float, used: set[str]) -> None:
         if motion == 76.0:
             g76(self, b, used)
+        elif motion == 70.0:
+            g70(self, b, used)
         elif motion == 72.0:
-            raise GcodeError(b.line, "G72", "facing roughing is not supported yet (our roughing turns along Z: G71)")
+            raise GcodeError(b.line, "G72", "facing roughing (passes along X) is not a method of ours: our turning "
+                                            "roughs in passes along Z (G71)")
         else:
             g71(self, b, used)
 

@@ -1,0 +1,99 @@
+"""G70, LinuxCNC 2.9's finishing cycle, into a move operation: the contour of the ``o<Q> sub``
+followed at feed, as rs274 -g makes it.
+
+``G70 Q<sub> X Z D E P``: a rapid to the start (X, Z; else where the tool stands); then P
+passes (default 1), pass k offset from the contour by E + (D - E)(P - k)/P (so the last
+pass runs on the contour, offset E), each one reached by a rapid to its first point and left
+by a rapid back to the start, but the last, which ends on the contour's end. The offset is
+to the right of travel in the Z-X plane (away from the material of a contour cut right to
+left on the outside), corners joined as ``compensation.offset_path`` joins them: arcs about
+outside corners, inside corners trimmed. The contour's first move is the approach, as in
+LinuxCNC: the path starts at its end.
+
+Its feed moves need the spindle only as any feed does (G95). G72 (facing roughing, passes along X) is refused: our turn method roughs in passes along Z
+only (G71), and a facing cycle expanded into moves here would not be one of our methods.
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from . import arcs
+from .compensation import Segment, offset_path
+from .lathe import _profile, _word
+from .lexer import Block, GcodeError, word_text
+from .parameters import whole
+
+if TYPE_CHECKING:
+    from .translate import Translator
+
+
+def contour_segments(profile: list) -> list[Segment]:
+    """The (z, x) segments of a lathe profile after its first point (its approach's end)."""
+    first = profile[0] if isinstance(profile[0], list) else profile[0]["arc_to"]
+    at = (first[0], first[1])
+    out: list[Segment] = []
+    for p in profile[1:]:
+        if isinstance(p, list):
+            end = (p[0], p[1])
+            if end != at:
+                out.append(Segment(at, end))
+        else:
+            end = (p["arc_to"][0], p["arc_to"][1])
+            out.append(Segment(at, end, (p["center"][0], p["center"][1]), p["radius"] < 0.0))
+        at = end
+    return out
+
+
+def g70(tr: "Translator", b: Block, used: set[str]) -> None:
+    """G70 Q X Z D E P: the finishing passes as feed moves of a move operation."""
+    s = tr.state
+    if s.plane != 18.0:
+        raise GcodeError(b.line, "G70", "a lathe cycle needs the XZ plane (G18)")
+    q = _word(b, used, "Q", "G70")
+    if "X" in b.words and "Z" in b.words:  # a rapid there first: where the tool stood does not matter
+        sx, sz = s.length(b.words["X"]) / (2.0 if s.diameter else 1.0), s.length(b.words["Z"])
+    else:
+        if "x" not in s.position or "z" not in s.position:
+            raise GcodeError(b.line, "G70", "starts where the tool is, which is unknown here: give X and Z")
+        sx = s.length(b.words["X"]) / (2.0 if s.diameter else 1.0) if "X" in b.words else s.position["x"]
+        sz = s.length(b.words["Z"]) if "Z" in b.words else s.position["z"]
+    used.update(k for k in "XZ" if k in b.words)
+    start = s.length(_word(b, used, "D", "G70", 0.0))
+    end = s.length(_word(b, used, "E", "G70", 0.0))
+    p_word = _word(b, used, "P", "G70", 1.0)
+    try:
+        passes = whole(p_word, word_text("P", p_word))
+    except ValueError:
+        passes = 0
+    if passes < 1:
+        raise GcodeError(b.line, word_text("P", p_word), "the number of passes must be a whole number >= 1")
+    if start < 0.0 or end < 0.0:
+        raise GcodeError(b.line, "G70", "D and E are distances from the contour (>= 0)")
+    feed = tr._feed_mm_min(b.line, "G70")
+    profile = _profile(tr, tr.executor.expand(str(int(q)), b.line), (sz, sx), b.line, "G70")
+    contour = contour_segments(profile)
+    if not contour:
+        raise GcodeError(b.line, "G70", "the contour has no move after its first point")
+
+    def go(z: float, x: float, feed_move: bool) -> None:
+        s.position["z"], s.position["x"] = z, x
+        entry = {"linear": dict(s.position), "feed": feed} if feed_move else {"rapid": dict(s.position)}
+        tr._move(b.line, entry)
+
+    if (sz, sx) != (s.position.get("z"), s.position.get("x")):
+        go(sz, sx, False)
+    for k in range(1, passes + 1):
+        distance = end + (start - end) * (passes - k) / passes
+        try:
+            path = offset_path(contour, distance)
+        except ValueError as err:
+            raise GcodeError(b.line, "G70", str(err)) from None
+        go(*path[0].start, False)
+        for seg in path:
+            if seg.center is None:
+                go(*seg.end, True)
+            else:
+                for pz, px, _ in arcs.chords(seg.start, seg.end, seg.center, seg.clockwise):
+                    go(pz, px, True)
+        if k < passes:
+            go(sz, sx, False)

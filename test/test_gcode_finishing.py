@@ -1,0 +1,116 @@
+"""G70 finishing (cnc_msgs_py.gcode.finishing) and the offset paths it shares with cutter
+compensation (cnc_msgs_py.gcode.compensation), and G72's refusal.
+
+- test/gcode_oracle/lathe_g70.ngc (two passes, a chamfer, an inside shoulder, an outside
+  round, an inside fillet): every feed and arc end rs274 -g makes of it (recorded by
+  bench/peer/examples.py in bench/results/rs274_examples.json) is one of our feed moves'
+  ends, in order, within 1 um; every one of ours lies on LinuxCNC's path (its arcs within
+  the 1 um chord tolerance); the operation plans on the lathe.
+- The offset geometry against hand-computed corners.
+"""
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cnc_msgs_py.gcode import Context, GcodeError, translate
+from cnc_msgs_py.gcode.compensation import Segment, offset_path
+from cnc_msgs_py.gcode.document import job_document
+from cnc_msgs_py.job import parse_job
+from cnc_msgs_py.machine import load_machine
+from cnc_planner.planning import plan_job
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT / "bench" / "peer")]
+import examples  # noqa: E402  bench/peer/examples.py
+import oracle  # noqa: E402  bench/peer/oracle.py
+
+TIP_TOLERANCE_MM = 1e-3
+LATHE = "G18 G21 G8 G90 G94\nM3 S1000\nF100\nG0 X12 Z3\n"
+
+
+def _on_path(point: np.ndarray, moves: list) -> float:
+    """The distance (mm) from an (x, z) point to LinuxCNC's feed path (lines and XZ arcs)."""
+    best = math.inf
+    for mv in moves:
+        a, b = np.array([mv.start[0], mv.start[2]]), np.array([mv.end[0], mv.end[2]])
+        if mv.kind == "arc":
+            c = np.array([mv.center[1], mv.center[0]])
+            best = min(best, abs(np.hypot(*(point - c)) - np.hypot(*(b - c))))
+        else:
+            u = b - a
+            t = 0.0 if not u.any() else float(np.clip((point - a) @ u / (u @ u), 0.0, 1.0))
+            best = min(best, float(np.hypot(*(point - a - t * u))))
+    return best
+
+
+def test_g70_ends_every_feed_move_where_linuxcnc_does_and_plans():
+    path = ROOT / "test" / "gcode_oracle" / "lathe_g70.ngc"
+    moves, error = oracle.canonical_moves(oracle.recorded(examples.RS274_RECORDED)(path.read_text()))
+    assert error is None, error
+    cuts = [m for m in moves if m.kind in ("feed", "arc")]
+    theirs = np.array([[m.end[0], m.end[2]] for m in cuts])
+    job = parse_job(job_document(path))
+    ours = np.array([[m["linear"]["x"], m["linear"]["z"]] for _, _, d in job.program.operations
+                     for m in d["move"] if "linear" in m])
+    assert len(theirs) == 20 and len(ours) > len(theirs)
+    k = 0
+    for end in theirs:  # LinuxCNC's ends, in order, among ours
+        while k < len(ours) and np.max(np.abs(ours[k] - end)) > TIP_TOLERANCE_MM:
+            k += 1
+        assert k < len(ours), f"LinuxCNC's feed end {end} is none of ours (in order)"
+    assert max(_on_path(p, cuts) for p in ours) <= TIP_TOLERANCE_MM
+    assert plan_job(job, load_machine("lathe")).duration > 0.0
+
+
+def test_outside_corners_get_an_arc_and_inside_corners_meet():
+    # a square's corner turning left, offset 1 to the right (outside): an arc about the corner
+    path = [Segment((0.0, 0.0), (10.0, 0.0)), Segment((10.0, 0.0), (10.0, 10.0))]
+    right = offset_path(path, 1.0)
+    assert right == [Segment((0.0, -1.0), (10.0, -1.0)), Segment((10.0, -1.0), (11.0, 0.0), (10.0, 0.0), False),
+                     Segment((11.0, 0.0), (11.0, 10.0))]
+    left = offset_path(path, -1.0)  # the inside: both lines end where they cross
+    assert left == [Segment((0.0, 1.0), (9.0, 1.0)), Segment((9.0, 1.0), (9.0, 10.0))]
+    # a G3 quarter arc of radius 5 (its center on the left of travel) grows to 6 on the right, shrinks on the left
+    arc = [Segment((5.0, 0.0), (0.0, 5.0), (0.0, 0.0), False)]
+    assert offset_path(arc, 1.0)[0] == Segment((6.0, 0.0), (0.0, 6.0), (0.0, 0.0), False)
+    assert offset_path(arc, -1.0)[0] == Segment((4.0, 0.0), (0.0, 4.0), (0.0, 0.0), False)
+    # a line running tangent into an arc: the offsets meet, nothing added
+    tangent = [Segment((0.0, 5.0), (-5.0, 5.0)), Segment((-5.0, 5.0), (-8.0, 2.0), (-5.0, 2.0), False)]
+    assert offset_path(tangent, 1.0) == [Segment((0.0, 6.0), (-5.0, 6.0)),
+                                         Segment((-5.0, 6.0), (-9.0, 2.0), (-5.0, 2.0), False)]
+    # a line into an arc turning away on the inside (G70's shoulder into a round, in (z, x)): they meet
+    # where the shifted line x = 8.35 crosses the grown circle of radius 2.35 about (-17, 8)
+    inside = offset_path([Segment((-10.0, 8.0), (-15.0, 8.0)), Segment((-15.0, 8.0), (-17.0, 10.0), (-17.0, 8.0), False)],
+                         0.35)
+    meet = (-17.0 + math.sqrt(2.35 ** 2 - 0.35 ** 2), 8.35)
+    assert len(inside) == 2 and inside[0].end == pytest.approx(meet, abs=1e-12) and inside[1].start == inside[0].end
+    assert inside[1].end == pytest.approx((-17.0, 10.35), abs=1e-12)
+
+
+@pytest.mark.parametrize("path,d,reason", [
+    ([Segment((5.0, 0.0), (0.0, 5.0), (0.0, 0.0), False)], -5.0, "an inside arc of radius 5 mm is not larger"),
+    ([Segment((0.0, 0.0), (10.0, 0.0)), Segment((10.0, 0.0), (10.0, 1.0)), Segment((10.0, 1.0), (0.0, 1.0))], -1.0,
+     "the inside corner at (10, 0) is too small"),
+    ([Segment((0.0, 0.0), (10.0, 0.0)), Segment((10.0, 0.0), (0.0, 0.0))], 1.0, "the path turns back on itself at (10, 0)"),
+])
+def test_offsets_the_contour_cannot_follow_are_refused(path, d, reason):
+    with pytest.raises(ValueError) as err:
+        offset_path(path, d)
+    assert str(err.value).startswith(reason), str(err.value)
+
+
+@pytest.mark.parametrize("text,reason", [
+    ("o1 sub\nG1 X5 Z0\nG1 Z-5\no1 endsub\nG70 Q1 P0\nM2", "line 9: P0: the number of passes must be a whole number >= 1"),
+    ("o1 sub\nG1 X5 Z0\no1 endsub\nG70 Q1\nM2", "line 8: G70: the contour needs at least two points"),
+    ("o1 sub\nG1 X5 Z0\nG1 X3 Z-2\nG1 Z-3\no1 endsub\nG70 Q1 D6 P2\nM2", "line 10: G70: the inside corner"),
+    ("o1 sub\nG1 X5 Z0\nG1 Z-5\no1 endsub\nG72 Q1 X12 Z3 I1 D0\nM2", "line 9: G72: facing roughing (passes along X) is not"),
+])
+def test_g70_and_g72_refusals(text, reason):
+    with pytest.raises(GcodeError) as err:
+        translate(LATHE + text, Context("t", "lathe"))
+    assert str(err.value).startswith(reason), str(err.value)

@@ -23,6 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from cnc_analysis.mcap_scan import Messages
+
 HEADER = 4  # the encapsulation header; CDR aligns relative to the bytes after it
 LITTLE_ENDIAN = (b"\x00\x01", b"\x00\x03")  # CDR_LE, PL_CDR_LE
 
@@ -119,13 +121,15 @@ class Columns:
     doubles: dict[str, np.ndarray]
 
 
-def read_alike(messages: list[bytes], fields: tuple) -> Columns | None:
+def read_alike(messages: Messages | list[bytes], fields: tuple) -> Columns | None:
     """Messages of one byte length as arrays; None if they are not alike (see the module)."""
+    if not isinstance(messages, Messages):
+        messages = Messages.of(messages)
     try:
         layout = layout_of(messages[0], fields)
     except (ValueError, struct.error):
         return None
-    raw = np.frombuffer(b"".join(messages), dtype=np.uint8).reshape(len(messages), layout.size)
+    raw = messages.stack()
     fixed = np.concatenate([np.arange(at, at + n) for at, n in layout.fixed]) if layout.fixed else np.zeros(0, int)
     if not (raw[:, fixed] == raw[0, fixed]).all():
         return None
@@ -154,29 +158,34 @@ def _ns(stamp: Any) -> int:
     return stamp.sec * 1_000_000_000 + stamp.nanosec
 
 
-def _by_size(messages: list[bytes]) -> list[list[int]]:
+def _by_size(messages: Messages) -> list[np.ndarray]:
     """Indices of the messages of each byte length, in order of first appearance."""
-    groups: dict[int, list[int]] = {}
-    for i, data in enumerate(messages):
-        groups.setdefault(len(data), []).append(i)
-    return list(groups.values())
+    lengths = messages.lengths
+    if len(lengths) == 0 or (lengths == lengths[0]).all():  # a recording's feedback: one length
+        return [np.arange(len(lengths))] if len(lengths) else []
+    sizes, first, which = np.unique(lengths, return_index=True, return_inverse=True)
+    order = np.argsort(which, kind="stable")  # the messages grouped by size, each group in order
+    groups = np.split(order, np.cumsum(np.bincount(which, minlength=len(sizes)))[:-1])
+    return [groups[k] for k in np.argsort(first)]
 
 
-def joint_states(messages: list[bytes], deserialize: Deserialize) -> list[Feedback]:
+def joint_states(messages: Messages | list[bytes], deserialize: Deserialize) -> list[Feedback]:
     """JointState messages in order as runs of alike ones (joint names, stamps in ns,
     positions, velocities); the joint names of the first run are the recording's."""
+    if not isinstance(messages, Messages):
+        messages = Messages.of(messages)
     out: list[tuple[int, Feedback]] = []
     for group in _by_size(messages):
-        alike = read_alike([messages[i] for i in group], JOINT_STATE)
+        alike = read_alike(messages.take(group), JOINT_STATE)
         first, last = deserialize(messages[group[0]]), deserialize(messages[group[-1]])
         if alike is not None and all(
                 alike.times_ns["stamp"][k, 0] == _ns(m.header.stamp)
                 and np.array_equal(alike.doubles["position"][k, 0], m.position)
                 and np.array_equal(alike.doubles["velocity"][k, 0], m.velocity) for k, m in ((0, first), (-1, last))):
-            out.append((group[0], (list(first.name), alike.times_ns["stamp"][:, 0],
+            out.append((int(group[0]), (list(first.name), alike.times_ns["stamp"][:, 0],
                                    alike.doubles["position"][:, 0], alike.doubles["velocity"][:, 0])))
             continue
-        for i in group:  # not alike: one by one, as rosbags reads them
+        for i in group.tolist():  # not alike: one by one, as rosbags reads them
             m = deserialize(messages[i])
             out.append((i, (list(m.name), np.array([_ns(m.header.stamp)]), np.asarray(m.position)[None],
                             np.asarray(m.velocity)[None])))
@@ -193,11 +202,13 @@ def _chunk(m: Any) -> Setpoints:
     return list(m.joint_names), times, pos, vel, acc
 
 
-def trajectory_chunks(messages: list[bytes], deserialize: Deserialize) -> list[Setpoints]:
+def trajectory_chunks(messages: Messages | list[bytes], deserialize: Deserialize) -> list[Setpoints]:
     """Every JointTrajectory message as arrays, in order."""
+    if not isinstance(messages, Messages):
+        messages = Messages.of(messages)
     out: dict[int, Setpoints] = {}
     for group in _by_size(messages):
-        alike = read_alike([messages[i] for i in group], JOINT_TRAJECTORY)
+        alike = read_alike(messages.take(group), JOINT_TRAJECTORY)
         ends = [_chunk(deserialize(messages[group[k]])) for k in (0, -1)]
         if alike is not None:
             heads = alike.times_ns["stamp"][:, :1]
@@ -209,7 +220,7 @@ def trajectory_chunks(messages: list[bytes], deserialize: Deserialize) -> list[S
             if all(all(np.array_equal(a, b) for a, b in zip(end[1:], (times[k], pos[k], vel[k], acc[k])))
                    for k, end in zip((0, -1), ends)):
                 names = ends[0][0]
-                out.update((i, (names, times[k], pos[k], vel[k], acc[k])) for k, i in enumerate(group))
+                out.update((i, (names, times[k], pos[k], vel[k], acc[k])) for k, i in enumerate(group.tolist()))
                 continue
-        out.update((i, _chunk(deserialize(messages[i]))) for i in group)
+        out.update((i, _chunk(deserialize(messages[i]))) for i in group.tolist())
     return [out[i] for i in range(len(messages))]

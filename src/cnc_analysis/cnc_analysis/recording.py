@@ -21,7 +21,7 @@ from cnc_msgs_py.topics import PLANT_KEY
 from cnc_msgs_py.units import NS
 
 from cnc_analysis.cdr_arrays import joint_states, trajectory_chunks
-from cnc_analysis.mcap_scan import messages
+from cnc_analysis.mcap_scan import last_part, scan
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 
@@ -98,21 +98,13 @@ def read_run(bag: Path) -> Run:
     if not bag.exists():
         raise FileNotFoundError(f"no recording at {bag}")
     run = Run()
-    arrays: dict[str, list[bytes | memoryview]] = {"joint_states": [], "joint_trajectory": []}  # read together below
-    received: list[int] = []  # the chunks' bag times
-    first: list[str] = []  # which of those two topics came first (its joint names are the run's)
-    types: dict[str, str] = {}
     try:
-        for topic, msgtype, received_ns, raw in messages(bag, skip={"clock"}):
-            topic = topic.rsplit("/", 1)[-1]
-            if topic in arrays:
-                arrays[topic].append(raw)
-                types[topic] = msgtype
-                first += [] if first else [topic]
-                if topic == "joint_trajectory":
-                    received.append(received_ns)
-                continue
-            msg = TYPESTORE.deserialize_cdr(bytes(raw), msgtype)
+        found = scan(bag, skip={"clock"})
+        bulk = {name: found.of_topic(name) for name in ("joint_states", "joint_trajectory")}  # read as arrays
+        for k in np.setdiff1d(np.arange(len(found.channel)), np.concatenate(list(bulk.values()))).tolist():
+            topic, msgtype = found.channels[int(found.channel[k])]
+            msg = TYPESTORE.deserialize_cdr(found.messages[k], msgtype)
+            topic = last_part(topic)
             if topic == "job_goal":
                 run.goals.append(msg.data)
             elif topic == "job_status":
@@ -122,14 +114,17 @@ def read_run(bag: Path) -> Run:
             elif topic == "diagnostics":
                 run.alarms += [s.message for s in msg.status if s.level >= 2]
                 run.plant = next((v.value for s in msg.status for v in s.values if v.key == PLANT_KEY), run.plant)
-        feedback = joint_states(arrays["joint_states"],
-                                lambda raw: TYPESTORE.deserialize_cdr(bytes(raw), types["joint_states"]))
-        chunks = trajectory_chunks(arrays["joint_trajectory"],
-                                   lambda raw: TYPESTORE.deserialize_cdr(bytes(raw), types["joint_trajectory"]))
+        types = {name: found.channels[int(found.channel[k[0]])][1] for name, k in bulk.items() if len(k)}
+        feedback = joint_states(found.messages.take(bulk["joint_states"]),
+                                lambda raw: TYPESTORE.deserialize_cdr(raw, types["joint_states"]))
+        chunks = trajectory_chunks(found.messages.take(bulk["joint_trajectory"]),
+                                   lambda raw: TYPESTORE.deserialize_cdr(raw, types["joint_trajectory"]))
+        received = found.log_time[bulk["joint_trajectory"]].astype(np.int64).tolist()  # the chunks' bag times
     except (OSError, KeyError, ValueError, AnyReaderError) as err:
         raise ValueError(f"cannot read recording {bag}: {err}") from err
-    if first:
-        run.joints = tuple(feedback[0][0] if first[0] == "joint_states" else chunks[0][0])
+    if firsts := sorted((int(k[0]), name) for name, k in bulk.items() if len(k)):
+        # the joint names of whichever of the two came first are the run's
+        run.joints = tuple(feedback[0][0] if firsts[0][1] == "joint_states" else chunks[0][0])
     if feedback:
         run.feedback_t = np.concatenate([t for _, t, _, _ in feedback]) / NS
         run.feedback = np.concatenate([p for _, _, p, _ in feedback])

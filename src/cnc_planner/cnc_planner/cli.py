@@ -56,8 +56,6 @@ def run_main(argv: list[str] | None = None) -> int:
     from cnc_msgs_py.plant import load_plant
     from cnc_msgs_py.schema import JobError
 
-    from cnc_planner.report_page import write_report_page
-
     out = args.out or Path("runs") / time.strftime("%Y%m%d-%H%M%S")
     if (out / "bag").exists():
         return _fail("cnc-run", f"--out: {out / 'bag'} exists already; choose a new directory")
@@ -67,28 +65,38 @@ def run_main(argv: list[str] | None = None) -> int:
         plant = str(args.plant.resolve()) if args.plant else ""
         load_plant(plant, machine)  # checked here: a bad plant file is bad input, not a failed run
     except (JobError, MachineError) as err:
+        from cnc_planner.report_page import write_report_page
+
         reason = f"machine: {err}" if isinstance(err, MachineError) else str(err)
         doc = locals().get("doc")
         report = _rejected_report(job_id_of(doc), reason)
         _write_json(out / "report.json", report)
         write_report_page(report, [], out / "report.html", job=doc if isinstance(doc, dict) else None)
         return _fail("cnc-run", f"rejected: {reason}")
-    from cnc_msgs_py.progress import Progress
+    from cnc_planner.nodes import Nodes
 
-    from cnc_planner.plots import write_plots
-    from cnc_planner.report import build_report
-    from cnc_planner.runner import RunError, run_job
-    from cnc_analysis.recording import read_run
-
-    print(f"cnc-run: {args.job} on '{machine.name}' -> {out}", flush=True)
-    progress = Progress()
+    # The nodes start first and come up while this process loads rclpy and the report's code.
+    nodes = Nodes(machine.name, namespace=args.namespace, bridge_params={"plant": plant} if plant else None)
     try:
-        status = run_job(json.dumps(doc), job_id_of(doc), machine.name, out / "bag",
-                         timeout=args.timeout, progress=progress, namespace=args.namespace, plant=plant)
-    except RunError as err:
-        progress.close()
-        return _fail("cnc-run", str(err), 3)
-    progress.close()
+        from cnc_msgs_py.progress import Progress
+
+        from cnc_planner.plots import write_plots
+        from cnc_planner.report import build_report
+        from cnc_planner.report_page import write_report_page
+        from cnc_planner.runner import RunError, run_job
+        from cnc_analysis.recording import read_run
+
+        print(f"cnc-run: {args.job} on '{machine.name}' -> {out}", flush=True)
+        progress = Progress()
+        try:
+            status = run_job(json.dumps(doc), job_id_of(doc), machine.name, out / "bag", timeout=args.timeout,
+                             progress=progress, namespace=args.namespace, plant=plant, nodes=nodes)
+        except RunError as err:
+            return _fail("cnc-run", str(err), 3)
+        finally:
+            progress.close()
+    finally:
+        nodes.stop()  # stopped by the run already, unless it failed before it began
     run = read_run(out / "bag")
     report = build_report(run)
     _write_json(out / "report.json", report)

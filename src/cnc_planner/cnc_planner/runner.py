@@ -10,9 +10,7 @@ from __future__ import annotations
 import importlib
 import json
 import os
-import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 from typing import Callable
@@ -26,12 +24,14 @@ from builtin_interfaces.msg import Time
 from std_msgs.msg import String
 
 from cnc_msgs_py import qos, topics
-from cnc_msgs_py.discovery import DDS_VARIABLES, dds_environment
+from cnc_msgs_py.discovery import DDS_VARIABLES
 from cnc_msgs_py.header_bytes import read_stamp
 from cnc_msgs_py.heard import NodesHeard
 from cnc_msgs_py.status import FINAL_STATES
 from cnc_msgs_py.units import NS
 from cnc_analysis.recording import RECORDED, BagWriter
+
+from cnc_planner.nodes import Nodes, local_dds_env, node_command, topic_name  # noqa: F401 (the runner's API)
 
 QOS = {
     "job_goal": qos.JOB_GOAL, "job_cancel": qos.JOB_CANCEL, "job_status": qos.JOB_STATUS,
@@ -47,34 +47,6 @@ ACK_EVERY_NS = 25_000_000  # tell the bridge what has been written every 25 ms o
 
 class RunError(RuntimeError):
     """The run could not be carried out (nodes did not start, timeout)."""
-
-
-def local_dds_env(domain_id: int | None = None) -> dict[str, str]:
-    """Environment for ROS processes: what the user chose for DDS (ROS_DOMAIN_ID,
-    ROS_AUTOMATIC_DISCOVERY_RANGE, ROS_DISCOVERY_SERVER) is kept; otherwise discovery stays
-    on localhost, in ``domain_id`` or a domain of our own."""
-    if domain_id is None:
-        domain_id = (os.getpid() % 100) + 1
-    return dds_environment(os.environ, domain_id)
-
-
-def topic_name(topic: str, namespace: str) -> str:
-    """The full name of a recorded topic. Outside the default namespace (a machine in a
-    cell) /clock and /diagnostics become the machine's own, so that several simulated
-    machines in one DDS domain keep their clocks and alarms apart."""
-    if not topic.startswith("/"):
-        return f"{namespace}/{topic}"
-    return topic if namespace == topics.NAMESPACE else f"{namespace}{topic}"
-
-
-def node_command(module: str, namespace: str, params: dict[str, object]) -> list[str]:
-    args = [sys.executable, "-m", module, "--ros-args", "-r", f"__ns:={namespace}"]
-    for topic in (topics.CLOCK, topics.DIAGNOSTICS):
-        if topic_name(topic, namespace) != topic:
-            args += ["-r", f"{topic}:={topic_name(topic, namespace)}"]
-    for key, value in params.items():
-        args += ["-p", f"{key}:={str(value).lower() if isinstance(value, bool) else value}"]
-    return args
 
 
 def message_class(msgtype: str) -> type:
@@ -160,17 +132,15 @@ class Session:
 
     def __init__(self, machine: str, bag_dir: Path, *, namespace: str = "/cnc",
                  env: dict[str, str] | None = None, progress: Callable[[dict], None] | None = None,
-                 bridge_params: dict[str, object] | None = None, simulation: bool = True) -> None:
-        self.env = env or local_dds_env()
+                 bridge_params: dict[str, object] | None = None, simulation: bool = True,
+                 nodes: Nodes | None = None) -> None:
+        """``nodes``: the machine's processes if already started (cnc-run starts them first),
+        else they are started here."""
+        self.nodes = nodes or Nodes(machine, namespace=namespace, env=env, bridge_params=bridge_params,
+                                    simulation=simulation)
+        self.env = self.nodes.env
         os.environ.update({k: self.env[k] for k in DDS_VARIABLES if k in self.env})  # the recorder's
         self.progress = progress
-        self.commands = {
-            "bridge": node_command("cnc_servo_bridge.bridge_node", namespace,
-                                   {"machine": machine, "simulation": simulation, **(bridge_params or {})}),
-            "planner": node_command("cnc_planner.planner_node", namespace,
-                                    {"machine": machine, "use_sim_time": simulation}),
-        }
-        self.procs = {name: subprocess.Popen(cmd, env=self.env) for name, cmd in self.commands.items()}
         self.bag = BagWriter(bag_dir, {topic_name(t, namespace): m for t, m in RECORDED.items()})
         rclpy.init()
         self.recorder = Recorder(self.bag, namespace)
@@ -202,8 +172,13 @@ class Session:
     def __exit__(self, *exc) -> None:
         self.close()
 
+    @property
+    def procs(self) -> dict[str, "subprocess.Popen"]:
+        """The node processes by name ("bridge", "planner")."""
+        return self.nodes.procs
+
     def own_pids(self) -> set[int]:
-        return {proc.pid for proc in self.procs.values()}
+        return self.nodes.pids()
 
     def ready(self) -> bool:
         """This session's planner and bridge are up and talking (see Recorder.ready)."""
@@ -211,13 +186,11 @@ class Session:
 
     def kill(self, name: str) -> None:
         """Kill a node the hard way (SIGKILL), as a crash would."""
-        proc = self.procs.pop(name)
-        proc.kill()
-        proc.wait(timeout=10)
+        self.nodes.kill(name)
 
     def restart(self, name: str) -> None:
         """Start a killed node again, with the same parameters, and wait until it talks."""
-        self.procs[name] = subprocess.Popen(self.commands[name], env=self.env)
+        self.nodes.start(name)
         if name == "planner":
             heard, seen = self.recorder.heard, self.recorder.heard.planner_heartbeats
             self.spin_until(lambda: heard.planner_heartbeats >= seen + 2, 30, "the planner did not come back")
@@ -254,9 +227,8 @@ class Session:
             if (now := time.monotonic()) >= next_check:
                 if now > deadline:
                     raise RunError(what)
-                dead = [name for name, p in self.procs.items() if p.poll() is not None]
-                if dead:
-                    raise RunError(f"{what}: the {dead[0]} exited with code {self.procs[dead[0]].returncode}")
+                if exited := self.nodes.exited():
+                    raise RunError(f"{what}: {exited}")
                 next_check = now + PROCESS_CHECK_S
             # Messages until the recorder wakes (an ack due, a status), not one per call.
             self.recorder.wake = Future()
@@ -272,22 +244,16 @@ class Session:
         self.executor.remove_node(self.recorder)
         self.recorder.destroy_node()
         rclpy.try_shutdown()
-        for proc in self.procs.values():
-            if proc.poll() is None:
-                proc.send_signal(signal.SIGINT)
-        for proc in self.procs.values():
-            try:
-                proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                proc.kill()
+        self.nodes.stop()
         self.bag.close()
 
 
 def run_job(text: str, job_id: str, machine: str, bag_dir: Path, *, timeout: float = 900.0,
             progress: Callable[[dict], None] | None = None, namespace: str = topics.NAMESPACE,
-            plant: str = "") -> dict:
+            plant: str = "", nodes: Nodes | None = None) -> dict:
     """Run one job document (JSON text) through both nodes, recording to ``bag_dir``; the
-    bridge emulates ``plant`` (a plant file) if given.
+    bridge emulates ``plant`` (a plant file) if given. ``nodes``: the nodes if already
+    started (with that machine, namespace and plant), which the run stops at its end.
 
     Returns the job's final status document.
 
@@ -295,7 +261,8 @@ def run_job(text: str, job_id: str, machine: str, bag_dir: Path, *, timeout: flo
         RunError: the nodes did not come up, or the job did not end within ``timeout``.
     """
     bridge = {"plant": plant} if plant else None
-    with Session(machine, bag_dir, progress=progress, namespace=namespace, bridge_params=bridge) as session:
+    with Session(machine, bag_dir, progress=progress, namespace=namespace, bridge_params=bridge,
+                 nodes=nodes) as session:
         session.submit(text)
         status = session.wait(job_id, timeout)
         if status["state"] != "rejected":

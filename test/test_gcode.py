@@ -132,7 +132,7 @@ BAD = [
     ("G21 G90\nG0 X0 Y0 Z5\nM3 S1000\nG81 X0 Y0 Z-3 F100\nM2", "line 4: G81: needs R"),
     ("G21 G90 G17\nG0 X0 Y0\nG2 X10 Y0 R4 F100\nM2", "line 3: G2: radius 4 mm cannot reach the end"),
     ("G21\nG0 X0 Y0 Z5\nG1 X1 ^45 F100\nM2", "line 3: ^: polar words cannot share a line with X or Y"),
-    ("G21\nG0 X0 Y0 Z5\nG96 S100\nM2", "line 3: G96: constant surface speed cannot be held"),
+    ("G21\nG0 X0 Y0 Z5\nG96 S100\nM2", "line 3: G96: constant surface speed needs a lathe"),
     ("G21\nG0 X0 Y0 Z5\nG1 X3 F100", "line 4: end of file: the program ends without M2 or M30"),
     ("G21\nG0 X0 Y0 Z5\nG1 X3\nM2", "line 3: G1: no feed given (F)"),
     ("G21\nG0 X0 Y0 Z5 Q3\nM2", "line 2: Q3: not used by anything in this line"),

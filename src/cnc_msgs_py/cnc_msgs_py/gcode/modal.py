@@ -26,7 +26,7 @@ G_GROUPS: dict[float, str] = {
     90.0: "distance", 91.0: "distance",
     90.1: "arc distance", 91.1: "arc distance",
     94.0: "feed mode", 95.0: "feed mode",
-    97.0: "spindle speed mode",
+    96.0: "spindle speed mode", 97.0: "spindle speed mode",
     98.0: "canned cycle return", 99.0: "canned cycle return",
 }
 G_REFUSED: dict[float, str] = {
@@ -35,7 +35,6 @@ G_REFUSED: dict[float, str] = {
     42.0: "cutter radius compensation is not supported",
     84.0: "tapping is not supported",
     93.0: "inverse time feed is not supported",
-    96.0: "constant surface speed cannot be held: an operation turns at one rpm (use G97 and S)",
 }
 M_GROUPS: dict[float, str] = {2.0: "stop", 30.0: "stop", 3.0: "spindle", 4.0: "spindle", 5.0: "spindle",
                               6.0: "tool change", 61.0: "tool change", 7.0: "mist", 8.0: "flood", 9.0: "coolant"}
@@ -81,7 +80,9 @@ class Modal:
     motion: float | None = None
     retract_initial: bool = False  # G98
     feed: float | None = None  # as written, in the program's units per min or per rev
-    speed: float = 0.0  # S, rpm
+    speed: float = 0.0  # S as written: rpm, or under G96 the surface speed
+    surface: float | None = None  # G96 in force: the surface speed, m/min (gcode.surface_speed)
+    max_rpm: float | None = None  # G96's D: the rpm cap (None: the spindle's limit)
     spindle_on: bool = False
     tool: int = 0  # in the spindle (M6)
     next_tool: int | None = None  # T

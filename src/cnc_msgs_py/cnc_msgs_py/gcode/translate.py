@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from . import arcs, offsets, system
+from . import arcs, offsets, surface_speed, system
 from .control import Executor
 from .drilling import hole
 from .finishing import g70
@@ -171,6 +171,7 @@ class Translator:
             if b.words["S"] < 0.0:
                 raise GcodeError(b.line, word_text("S", b.words["S"]), "a speed must be >= 0")
             s.speed = b.words["S"]
+        surface_speed.words(self, b, used, g)  # G96 D S, G97
         if "T" in b.words:
             used.add("T")
             s.next_tool = self._tool_number(b, "T")
@@ -220,6 +221,7 @@ class Translator:
         elif any(c in g for c in offsets.OFFSET_CODES):
             offsets.g92(self, b, used, next(c for c in g if c in offsets.OFFSET_CODES))
         else:
+            surface_speed.check_motion(self, b, g)
             self._motion(b, g, used)
         return 2.0 in m or 30.0 in m
 
@@ -408,7 +410,7 @@ class Translator:
         if self.applied_length():
             tool["length"] = self.applied_length()
         doc = {"schema": "cnc_job/1", "job_id": "", "kind": kind, "machine": self.ctx.machine,
-               "tool": tool, "setup": self.offsets.setup(s.work_offset), "spindle_rpm": s.speed if s.spindle_on else 0.0}
+               "tool": tool, "setup": self.offsets.setup(s.work_offset), **surface_speed.spindle(s)}
         return doc
 
     def _begin(self, line: int, kind: str, key: tuple, block: dict | list) -> dict | list:
@@ -436,7 +438,7 @@ class Translator:
     def _key(self) -> tuple:
         s = self.state
         vib = None if self.vibration is None else tuple(sorted(self.vibration.items()))
-        return (s.tool, self.applied_length(), self.offsets.key(s.work_offset), s.speed if s.spindle_on else 0.0, vib)
+        return (s.tool, self.applied_length(), self.offsets.key(s.work_offset), surface_speed.key(s), vib)
 
     def _move(self, line: int, entry: dict) -> None:
         self._begin(line, "move", self._key(), []).append(entry)

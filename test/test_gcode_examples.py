@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cnc_msgs_py.gcode import machine_named
 from cnc_msgs_py.gcode.document import job_document
 from cnc_msgs_py.job import parse_job
 from cnc_msgs_py.machine import load_machine
@@ -33,6 +34,8 @@ import examples  # noqa: E402  bench/peer/examples.py
 import oracle  # noqa: E402  bench/peer/oracle.py
 
 PROGRAMS = sorted((ROOT / "test" / "programs").glob("*.ngc"))
+MILLING = [p for p in PROGRAMS if machine_named(p.read_text()) != "lathe"]
+LATHE_PROGRAM = ROOT / "test" / "programs" / "lathe_css_g96_g76.ngc"
 TIP_TOLERANCE_MM = 1e-3
 PRECOMPENSATION_M = 50e-6  # the command turns at most this far above a hole's bottom
 SAMPLE_S = 5e-5
@@ -61,7 +64,7 @@ def _turning_points(plan, lengths_by_time) -> np.ndarray:
     return p[low]
 
 
-@pytest.mark.parametrize("path", PROGRAMS, ids=[p.stem for p in PROGRAMS])
+@pytest.mark.parametrize("path", MILLING, ids=[p.stem for p in MILLING])
 def test_every_linuxcnc_feed_end_is_our_tool_tip_target(path):
     """Every feed move LinuxCNC makes of the program ends where ours does (1 um, in order),
     and our planned Z command turns at each hole's bottom: a little short of it, as the
@@ -85,6 +88,24 @@ def test_every_linuxcnc_feed_end_is_our_tool_tip_target(path):
         gap = turns - bottom
         near = np.hypot(gap[:, 0], gap[:, 1]) < 1e-9
         assert near.any() and 0.0 <= np.min(gap[near, 2]) <= PRECOMPENSATION_M, (path.name, bottom)
+
+
+def test_linuxcnc_reads_the_constant_surface_speed_program_as_we_do():
+    """lathe_css_g96_g76.ngc through rs274 (recorded): G96 D3000 S120 sets LinuxCNC's spindle mode
+    to constant surface speed capped at 3000 rpm before the roughing and G97 S600 back to rpm
+    before the thread, as ours reads them; its G71 levels and contour (D from our profile) and
+    its G76 passes are ours within rs274's printed resolution (bench/peer/oracle.py). Its feed
+    moves are not ours one by one: our roughing starts each pass at the stock (docs/turn.md)."""
+    text = LATHE_PROGRAM.read_text()
+    interpret = oracle.recorded(examples.RS274_RECORDED)
+    calls = [ln.split("N..... ")[1] for ln in interpret(text).splitlines() if "SPINDLE_MODE" in ln or "SPINDLE_SPEED" in ln]
+    assert calls[:4] == ["SET_SPINDLE_MODE(0 3000.0000)", "SET_SPINDLE_SPEED(0, 120.0000)",
+                         "SET_SPINDLE_MODE(0 0.0000)", "SET_SPINDLE_SPEED(0, 600.0000)"]
+    ops = parse_job(job_document(LATHE_PROGRAM)).program.operations
+    assert [(op.kind, doc.get("surface_speed"), doc.get("spindle_rpm")) for _, op, doc in ops if op.kind != "move"] == [
+        ("turn", {"m_min": 120.0, "max_rpm": 3000.0}, None), ("thread", None, 600.0)]
+    lines = oracle.check_program(LATHE_PROGRAM.stem, text, [(line, op.kind, doc) for line, op, doc in ops], interpret)
+    assert len(lines) == 2 and all(" same within " in line for line in lines), lines
 
 
 def test_the_must_show_programs_make_what_they_say():

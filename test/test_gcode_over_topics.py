@@ -1,12 +1,14 @@
 """The must-show G-code programs over topics (cnc-run: planner and bridge nodes, DDS on this
 host), each one goal, judged on the recorded feedback: a bolt circle from a while loop, a hole
 pattern from a subroutine called with arguments, two drills from the machine's tool table
-with G43 (test/programs/, checked against LinuxCNC's interpreter in test_gcode_examples.py)."""
+with G43, a lathe program roughing at constant surface speed then threading at one rpm
+(test/programs/, checked against LinuxCNC's interpreter in test_gcode_examples.py)."""
 from __future__ import annotations
 
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -61,3 +63,30 @@ def test_a_failed_operation_fails_the_program(tmp_path):
     report = load_report(tmp_path / "run")
     assert report["state"] == "succeeded" and report["program"]["verdict"]["passed"] is False
     assert report["program"]["verdict"]["says"].startswith("operation 1 (line 4, drill): X/Y moved")
+
+
+def test_a_lathe_program_roughs_at_constant_surface_speed_then_threads_at_one_rpm(tmp_path):
+    """test/programs/lathe_css_g96_g76.ngc over topics: G96 D3000 S120 then G71, G97 S600 then
+    G76. Judged on the recorded feedback: wherever the tip cuts (feeding at the feed per
+    revolution of the measured spindle speed) the measured surface speed is within 2 % of
+    120 m/min where 3000 rpm does not cap it, the measured rpm never above 3000; the thread
+    cut at one 600 rpm, at full depth along its flank."""
+    from cnc_analysis.recording import read_run
+    report = _run(tmp_path, "lathe_css_g96_g76")
+    ops = report["program"]["operations"]
+    assert [(op["line"], op["kind"]) for op in ops] == [(8, "move"), (17, "turn"), (20, "move"), (21, "thread"),
+                                                      (22, "move")]
+    turn, thread = ops[1]["turn"], ops[3]["thread"]
+    css = turn["surface_speed"]
+    assert turn["verdict"]["passed"] and thread["verdict"]["passed"], (turn["verdict"], thread["verdict"])
+    assert css["max_deviation_pct"] <= 2.0 and css["max_rpm"] <= 3000.0
+    assert css["held_s"] > 5.0 and css["capped_s"] > 1.0  # most of the cut held, the small radii capped
+    assert 118.0 <= css["min_m_min"] and css["max_m_min"] <= 122.0
+    assert turn["max_gouge_part_mm"] == 0.0 and thread["full_depth"]
+    run = read_run(tmp_path / "run" / "bag")
+    starts = sorted(e["stamp_ns"] / 1e9 for e in run.events if e.get("name") == "operation")
+    rpm = run.feedback_velocity[:, run.column("spindle")] * 60.0 / (2.0 * math.pi)
+    during = lambda k: (run.feedback_t >= starts[k]) & (run.feedback_t < starts[k + 1])  # noqa: E731
+    assert np.ptp(rpm[during(1)]) > 1000.0  # the roughing's spindle follows the radius
+    in_thread = during(3) & (run.feedback[:, run.column("x")] < 6e-3)  # the tip below the major radius
+    assert in_thread.sum() > 1000 and np.allclose(rpm[in_thread], 600.0, rtol=1e-3)  # one rpm while it cuts

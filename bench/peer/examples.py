@@ -110,11 +110,34 @@ def rs274(path: Path, machine: str) -> str:
 
 def record_must_show() -> dict[str, str]:
     """rs274 -g's output of each program of test/programs/ and test/gcode_oracle/, by the
-    program's sha256."""
+    program's sha256; for a G71 of test/programs/ also of the program up to its line
+    (oracle.upto), which oracle.check_program reads the roughing cycle from."""
     import oracle  # bench/peer/oracle.py, beside this script
     from cnc_msgs_py.gcode import machine_named
-    return {oracle._key(path.read_text()): rs274(path, machine_named(path.read_text()) or "mill3")
-            for path in sorted([*MUST_SHOW.glob("*.ngc"), *ORACLE_PROGRAMS.glob("*.ngc")])}
+    outputs = {}
+    for path in sorted([*MUST_SHOW.glob("*.ngc"), *ORACLE_PROGRAMS.glob("*.ngc")]):
+        machine = machine_named(path.read_text()) or "mill3"
+        outputs[oracle._key(path.read_text())] = rs274(path, machine)
+        if path.parent == MUST_SHOW:
+            outputs.update(_roughing_prefixes(path, machine))
+    return outputs
+
+
+def _roughing_prefixes(path: Path, machine: str) -> dict[str, str]:
+    """rs274 -g's output of the program up to each of its G71 lines, by that text's sha256."""
+    import tempfile
+
+    import oracle
+    from cnc_msgs_py.gcode.document import job_document
+    from cnc_msgs_py.job import parse_job
+    text, out = path.read_text(), {}
+    for line, op, _ in parse_job(job_document(path)).program.operations:
+        if op.kind == "turn":
+            with tempfile.TemporaryDirectory() as folder:
+                prefix = Path(folder) / path.name
+                prefix.write_text(oracle.upto(text, line))
+                out[oracle._key(prefix.read_text())] = rs274(prefix, machine)
+    return out
 
 
 def main() -> int:

@@ -267,6 +267,12 @@ def _check_turn(doc: dict, moves: list[Move], tol: float) -> tuple[list[str], st
 
 
 # --- per program --------------------------------------------------------------------------------
+def upto(text: str, line: int) -> str:
+    """The program up to its line ``line`` (a G71's), then M2: what rs274 makes of a roughing
+    cycle alone, its contour pass the last run of feeds."""
+    return "\n".join(text.splitlines()[:line]) + "\nM2\n"
+
+
 def check_program(name: str, text: str, operations: list[tuple[int, str, dict]],
                   interpret: Callable[[str], str] = rs274) -> list[str]:
     """One line per cycle operation: what LinuxCNC's interpreter (``interpret``: a program's
@@ -287,8 +293,7 @@ def check_program(name: str, text: str, operations: list[tuple[int, str, dict]],
         elif kind == "thread":
             problems, used_passes, what, worst = _check_thread(doc, passes, used_passes, tol)
         elif kind == "turn":
-            upto = "\n".join(text.splitlines()[:line]) + "\nM2\n"
-            problems, what, worst = _check_turn(doc, canonical_moves(interpret(upto))[0], tol)
+            problems, what, worst = _check_turn(doc, canonical_moves(interpret(upto(text, line)))[0], tol)
         else:
             continue
         verdict = f"same within {worst * 1e3:.2f} um" if not problems else "DIFFERS: " + "; ".join(problems)

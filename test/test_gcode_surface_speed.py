@@ -1,0 +1,153 @@
+"""Constant surface speed (G96 D S / G97, issue 42): the front end's modal spindle speed mode
+and its refusals, the job schema's ``surface_speed``, the planner's spindle along X and the
+judge's reading of it (cnc_analysis.surface_speed). The program over topics, judged on its
+feedback, is in test_gcode_over_topics.py."""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from cnc_analysis.surface_speed import judge_surface_speed
+from cnc_msgs_py.gcode.document import job_document
+from cnc_msgs_py.job import parse_job
+from cnc_msgs_py.machine import load_machine
+from cnc_msgs_py.schema import JobError
+from cnc_planner.executive import Executive
+from cnc_planner.kinematics import Kinematics
+from cnc_planner.planning import plan_job
+
+ROOT = Path(__file__).resolve().parents[1]
+PROGRAM = ROOT / "test" / "programs" / "lathe_css_g96_g76.ngc"
+HEAD = "G21 G18 G7 G90 G95\n"
+
+
+def _program(text: str, machine: str = "lathe") -> dict:
+    return {"schema": "cnc_job/1", "job_id": "css", "kind": "program", "machine": machine, "program": {"gcode": text}}
+
+
+def _refused(text: str, machine: str = "lathe") -> str:
+    with pytest.raises(JobError) as err:
+        parse_job(_program(text, machine))
+    return str(err.value)
+
+
+def test_g96_roughs_at_a_surface_speed_and_g97_threads_at_one_rpm():
+    """The must-show program: the rapid and the G71 at 120 m/min capped at D3000, no rpm of
+    their own; the G76 and the moves after G97 at S600."""
+    ops = parse_job(job_document(PROGRAM)).program.operations
+    assert [(line, op.kind) for line, op, _ in ops] == [(8, "move"), (17, "turn"), (20, "move"), (21, "thread"),
+                                                      (22, "move")]
+    for _, _, doc in ops[:2]:
+        assert doc["surface_speed"] == {"m_min": 120.0, "max_rpm": 3000.0} and "spindle_rpm" not in doc
+    assert ops[1][2]["turn"]["feed"] == pytest.approx(0.15)  # G95: per revolution, at the actual speed
+    assert [doc.get("spindle_rpm") for _, _, doc in ops[2:]] == [600.0] * 3
+    assert all("surface_speed" not in doc for _, _, doc in ops[2:])
+
+
+def test_a_surface_speed_in_feet_per_minute_is_converted_once():
+    """Under G20 S is ft/min: 500 ft/min = 152.4 m/min; without D the spindle's limit caps."""
+    text = ("G20 G18 G7 G90 G95\nG96 S500 M3\nG0 X0.9 Z0.2\nF0.006\no100 sub\nG1 X0.4 Z0.2\nG1 Z-0.5\no100 endsub\n"
+            "G71 Q100 X0.8 Z0.2 D0.004 I0.04 R0.02\nM2\n")
+    ops = parse_job(_program(text)).program.operations
+    turn = next(doc for _, op, doc in ops if op.kind == "turn")
+    assert turn["surface_speed"] == {"m_min": pytest.approx(152.4)}
+
+
+@pytest.mark.parametrize("text,reason", [
+    (HEAD + "G96 D2000 S150 M3\nG0 X14 Z4\nG76 P1.75 Z-14 I-2 J0.8738 R2 K2.14 Q29.5 H1 E0 L0\nM2",
+     "line 4: G76: a thread turns at one rpm (its lead is locked to the spindle angle): G97 S.. before it"),
+    (HEAD + "G96 D2000 S150 M3\nG0 X22 Z7\nF0.15\n(CNC,VIBRATION D=1.5 Q=1.2)\n"
+            "G71 Q100 X20 Z5 D0.2 I1.5 R0.5\nM2\no100 sub\nG1 X10 Z5\nG1 Z-10\no100 endsub",
+     "line 6: G71: (CNC,VIBRATION) is locked to one spindle speed"),
+    ("G21 G18 G7 G90 G94\nG96 D2000 S150 M3\nG0 X22 Z7\nF200\nG71 Q100 X20 Z5 D0.2 I1.5 R0.5\nM2\n"
+     "o100 sub\nG1 X10 Z5\nG1 Z-10\no100 endsub",
+     "line 5: G71: at constant surface speed the feed is per revolution (G95)"),
+    (HEAD + "G96 D2000 S150 M3\nG0 X22 Z7\nG1 X18 F0.1\nM2",
+     "line 4: G1: feed moves at constant surface speed are not supported yet"),
+    (HEAD + "G96 D-5 S150 M3\nM2", "line 2: D-5: the maximum rpm must be >= 0"),
+    (HEAD + "G96 D2000 M3\nM2", "line 2: G96: needs S, the surface speed"),
+    (HEAD + "M3 S500\nG0 X22 Z7\nF0.15\nG96 G71 Q100 X20 Z5 D0.2 I1.5 R0.5\nM2\no100 sub\nG1 X10 Z5\no100 endsub",
+     "line 5: G96: give G96 D.. S.. on a line of its own: D is also G71's word here"),
+])
+def test_what_cannot_turn_at_a_surface_speed_is_refused_at_its_word(text, reason):
+    assert _refused(text).startswith(reason)
+
+
+def test_g96_on_a_mill_names_the_machine():
+    assert _refused("G21 G90\nG96 S100 M3\nG0 X1\nM2", "mill3").startswith(
+        "line 2: G96: constant surface speed needs a lathe (the speed follows the tool's radius, x): mill3 is a mill3")
+
+
+def _turn_doc(**spindle) -> dict:
+    doc = yaml.safe_load((ROOT / "config" / "jobs" / "turn_cone.yaml").read_text())
+    doc.pop("spindle_rpm", None)
+    return {**doc, **spindle}
+
+
+@pytest.mark.parametrize("change,reason", [
+    ({"surface_speed": {"m_min": 150}, "spindle_rpm": 1000}, "spindle_rpm: give spindle_rpm or surface_speed"),
+    ({"surface_speed": {"m_min": 0}}, "surface_speed.m_min: must be > 0 m/min"),
+    ({"surface_speed": {"m_min": 150, "max_rpm": 0.5}}, "surface_speed.max_rpm: must be >= 1 rpm"),
+    ({"surface_speed": {"m_min": 150, "rpm": 5}}, "surface_speed.rpm: unknown key"),
+    ({"surface_speed": {"m_min": 150}, "vibration": {"D": 1.5, "Q": 1.2}}, "vibration: a vibration is locked to one"),
+    ({}, "spindle_rpm: must be > 0 for a turn job"),
+])
+def test_bad_surface_speeds_are_refused_by_field(change, reason):
+    with pytest.raises(JobError) as err:
+        parse_job(_turn_doc(**change))
+    assert str(err.value).startswith(reason)
+
+
+def test_a_thread_job_and_a_mill_refuse_a_surface_speed_and_move_nothing():
+    doc = yaml.safe_load((ROOT / "config" / "jobs" / "thread_m12.yaml").read_text())
+    doc.pop("spindle_rpm")
+    with pytest.raises(JobError, match=r"^surface_speed: not used by a thread job: a thread turns at one rpm"):
+        parse_job({**doc, "surface_speed": {"m_min": 100}})
+    executive = Executive(load_machine("mill3"))
+    move = {"schema": "cnc_job/1", "job_id": "css-mill", "kind": "move", "machine": "mill3",
+            "surface_speed": {"m_min": 100}, "move": [{"rapid": {"x": 10}}]}
+    status = executive.submit(json.dumps(move))  # refused before any setpoint
+    assert status.state == "rejected" and status.reason.startswith("surface_speed: needs a lathe"), status.reason
+
+
+def test_the_planned_spindle_holds_the_surface_speed_along_x():
+    """turn_cone at 150 m/min capped at 3000 rpm: wherever the tip feeds (at the feed per
+    revolution of the planned spindle speed) the surface speed is within 1 % of 150 m/min
+    where the cap does not bind, the rpm never above the cap, the spindle's acceleration
+    within its limit; the cone's tapered cuts ramp it along the cut."""
+    machine = load_machine("lathe")
+    job = parse_job(_turn_doc(surface_speed={"m_min": 150, "max_rpm": 3000}))
+    plan = plan_job(job, machine, {"x": 0.03, "z": 0.01})
+    t = np.arange(0.0, plan.duration, 1e-3)
+    p, v, a = plan.sample(t)
+    x, z, s = (plan.joints.index(j) for j in ("x", "z", "spindle"))
+    radius, _ = Kinematics(machine, job.setup, job.tool).tip_radius_z(p[:, x], p[:, z])
+    figures = judge_surface_speed(t, radius, np.hypot(v[:, x], v[:, z]), v[:, s], job.surface_speed.m_min,
+                                  job.surface_speed.max_rpm, job.turn.feed)
+    assert figures["failures"] == [] and figures["max_deviation_pct"] <= 1.0 + 1e-6
+    assert figures["held_s"] > 30.0 and figures["capped_s"] > 1.0 and figures["max_rpm"] <= 3000.0
+    assert figures["min_m_min"] < 149.0  # a taper's pieces: not one rpm per cut
+    assert np.max(np.abs(a[:, s])) <= machine.axes["spindle"].max_acceleration * (1 + 1e-9)
+
+
+def test_the_judge_fails_one_rpm_along_x_and_a_spindle_above_its_cap():
+    """Synthetic feedback: a face cut from 20 to 10 mm at one rpm is 50 % off at its end;
+    a spindle 1 % above the cap fails however well it holds the speed."""
+    t = np.arange(0.0, 2.0, 1e-3)
+    radius = np.linspace(0.020, 0.010, len(t))
+    w = np.full_like(t, 2.5 / 0.020)  # 150 m/min at 20 mm
+    feed = 0.15e-3 * w / (2.0 * math.pi)
+    one_rpm = judge_surface_speed(t, radius, feed, w, 2.5, 1000.0, 0.15e-3)
+    assert one_rpm["max_deviation_pct"] == pytest.approx(50.0, abs=0.1)
+    assert one_rpm["failures"][0].startswith("surface speed -50.00 % off 150 m/min at radius 10.000 mm")
+    held = 2.5 / radius
+    above = judge_surface_speed(t, radius, 0.15e-3 * held / (2.0 * math.pi), held, 2.5, held.max() / 1.01, 0.15e-3)
+    assert any(f.startswith("spindle at 2387.3 rpm, above the cap of 2363.7 rpm") for f in above["failures"])
+    rapid = judge_surface_speed(t, radius, np.full_like(t, 0.2), held, 2.5, 1000.0, 0.15e-3)
+    assert rapid["cutting_s"] == 0.0 and rapid["failures"] == [
+        "no cut found at the feed per revolution of the measured spindle speed"]

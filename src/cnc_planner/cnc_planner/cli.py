@@ -73,10 +73,16 @@ def run_main(argv: list[str] | None = None) -> int:
         _write_json(out / "report.json", report)
         write_report_page(report, [], out / "report.html", job=doc if isinstance(doc, dict) else None)
         return _fail("cnc-run", f"rejected: {reason}")
+    from cnc_planner.baselines import plan_beside
     from cnc_planner.nodes import Nodes
 
-    # The nodes start first and come up while this process loads rclpy and the report's code.
+    # The nodes start first and come up while this process loads rclpy and the report's code;
+    # the report's baselines are planned meanwhile, in a child process (before rclpy's threads).
     nodes = Nodes(machine.name, namespace=args.namespace, bridge_params={"plant": plant} if plant else None)
+    try:
+        beside = plan_beside(doc, machine)
+    except JobError:
+        beside = None  # the planner rejects it, with the reason
     try:
         from cnc_msgs_py.progress import Progress
 
@@ -92,11 +98,15 @@ def run_main(argv: list[str] | None = None) -> int:
             status = run_job(json.dumps(doc), job_id_of(doc), machine.name, out / "bag", timeout=args.timeout,
                              progress=progress, namespace=args.namespace, plant=plant, nodes=nodes)
         except RunError as err:
+            if beside is not None:
+                beside.cancel()
             return _fail("cnc-run", str(err), 3)
         finally:
             progress.close()
     finally:
         nodes.stop()  # stopped by the run already, unless it failed before it began
+    if beside is not None:
+        beside.collect()
     run = read_run(out / "bag")
     report = build_report(run)
     _write_json(out / "report.json", report)

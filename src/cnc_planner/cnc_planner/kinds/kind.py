@@ -82,6 +82,9 @@ class ReportSection:
     times_cycle: bool = False  # its cycle_time_s (and conventional / lower bound) is the page's cycle time
     cards_at: str | None = None
     tables_at: str | None = None
+    # What ``judge`` compares the run with that depends only on (job, machine, start):
+    # cnc_planner.baselines functions, which cnc-run computes while the job runs.
+    baselines_at: tuple[str, ...] = ()
 
     @property
     def judge(self) -> Callable[[Run, Job, Machine, np.ndarray], dict]:

@@ -61,7 +61,8 @@ KIND = JobKind(
     segmenting=Segmenting(size=SEGMENT_HOLES, index="hole", count=lambda job: len(job.drill.holes), part=_part,
                           check_whole=_check_whole, prepare=_prepare, settle=_hold_until_settled),
     report=ReportSection("drill", f"{__name__}.report:drill_section", judges_chips=True, times_cycle=True,
-                         cards_at=f"{__name__}.page:cards", tables_at=f"{__name__}.page:tables"),
+                         cards_at=f"{__name__}.page:cards", tables_at=f"{__name__}.page:tables",
+                         baselines_at=(f"{__name__}.report:other_cycles",)),
     figures=Figures(f"{__name__}.figures", aircut_summary="first_hole_aircut"),
     progress=ProgressCount("S1", "hole", total=lambda job: len(job.drill.holes)),
 )

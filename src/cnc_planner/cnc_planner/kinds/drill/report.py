@@ -20,6 +20,7 @@ from cnc_analysis.recording import Run
 from cnc_analysis.verdict import OVERCUT_LIMIT, verdict
 
 from cnc_planner import planning
+from cnc_planner.baselines import baseline
 from cnc_planner.kinds.drill.block import drill_cycle
 from cnc_planner.kinds.drill.bound import lower_bound_time
 from cnc_planner.kinds.drill.clamps import OBSTACLE_MARGIN
@@ -29,14 +30,52 @@ from cnc_planner.prediction import simulated_feedback
 from cnc_planner.vibration.report import CHIP_CRITERION, chip_failures, feed_aircut, feeds
 
 
+def _frame(kin: Kinematics, machine: Machine) -> bool:
+    """A tilted setup drills in program coordinates (tool along program Z): analysed there."""
+    return tilted(kin) and machine.layout != "mill3"
+
+
+def _tips(kin: Kinematics, frame: bool):
+    """The tool tip's x, y, z of feedback (samples x joints, in ``joints``' order)."""
+    def xyz(joints, feedback: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if not frame:
+            return tuple(feedback[:, list(joints).index(j)] for j in "xyz")  # type: ignore[return-value]
+        tips, _ = kin.fk_many({j: feedback[:, i] for i, j in enumerate(joints) if j != SPINDLE})
+        return tips[:, 0], tips[:, 1], tips[:, 2]
+    return xyz
+
+
+@baseline
+def other_cycles(job: SimpleNamespace, machine: Machine, start: dict[str, float]) -> dict:
+    """The cycles the drilled one is compared with, planned from ``start`` and timed on the
+    drive model's feedback: the conventional cycle (overlap off) and, for a job drilled in
+    the short tour, the order given. The recording changes neither (cnc_planner.baselines)."""
+    kin = Kinematics(machine, job.setup, job.tool)
+    cycle = drill_cycle(job, machine, kin, (start["x"], start["y"]))
+    frame = _frame(kin, machine)
+    xyz = _tips(kin, frame)
+    surfaces = [cycle.planes(i)[0] for i in range(len(cycle.holes))]
+    conventional = SimpleNamespace(**{**vars(job), "drill": SimpleNamespace(**{**vars(job.drill), "overlap": "off"})})
+    conv_plan = planning.plan_job(conventional, machine, start)
+    ct, cfb = simulated_feedback(conv_plan, machine)
+    if frame:
+        keep = ct >= min(e.time for e in conv_plan.events if e.name == "S1") - 1e-9
+        ct, cfb = ct[keep], cfb[keep]
+    conv = analyze_drilling(ct, *xyz(conv_plan.joints, cfb), cycle.holes, cycle.r_z, cycle.xy_tolerance, surfaces)
+    out = {"conventional_cycle_time_s": conv["cycle_time_s"]}
+    if job.drill.order == "shortest":  # planning the other order costs a plan: only when asked
+        out["given_cycle_time_s"] = given_order_time(job, machine, start, xyz)
+    return out
+
+
 def drill_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray) -> dict:
     kin = Kinematics(machine, job.setup, job.tool)
     start = {j: float(run.feedback[window][0, run.column(j)]) for j in run.joints}
     cycle = drill_cycle(job, machine, kin, (start["x"], start["y"]))
-    # A tilted setup drills in program coordinates (tool along program Z): analyse there,
-    # from the cycle's start (the first S1): before it the rotaries turn from wherever
-    # the machine stood, where the program's R plane means nothing yet.
-    frame = tilted(kin) and machine.layout != "mill3"
+    # A tilted setup is analysed from the cycle's start (the first S1): before it the
+    # rotaries turn from wherever the machine stood, where the program's R plane means
+    # nothing yet.
+    frame = _frame(kin, machine)
     if frame:
         begin = run.feedback_t[window][0]
         s1 = [e["stamp_ns"] / 1e9 for e in run.events
@@ -45,26 +84,14 @@ def drill_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.n
             window = window & (run.feedback_t >= min(s1) - 1e-9)
     t = run.feedback_t[window]
     fb = run.feedback[window]
-
-    def xyz(joints, feedback: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        if not frame:
-            return tuple(feedback[:, list(joints).index(j)] for j in "xyz")  # type: ignore[return-value]
-        tips, _ = kin.fk_many({j: feedback[:, i] for i, j in enumerate(joints) if j != SPINDLE})
-        return tips[:, 0], tips[:, 1], tips[:, 2]
-
+    xyz = _tips(kin, frame)
     surfaces = [cycle.planes(i)[0] for i in range(len(cycle.holes))]
     result = analyze_drilling(t, *xyz(run.joints, fb), cycle.holes, cycle.r_z, cycle.xy_tolerance, surfaces)
     modes = {e["hole"]: e["mode"] for e in run.events if e.get("name") == "S1"}
     for hole in result["holes"]:
         hole["mode"] = modes.get(hole["index"])
         hole["job_index"] = cycle.order[hole["index"]] if cycle.order else hole["index"]
-    conventional = SimpleNamespace(**{**vars(job), "drill": SimpleNamespace(**{**vars(job.drill), "overlap": "off"})})
-    conv_plan = planning.plan_job(conventional, machine, start)
-    ct, cfb = simulated_feedback(conv_plan, machine)
-    if frame:
-        keep = ct >= min(e.time for e in conv_plan.events if e.name == "S1") - 1e-9
-        ct, cfb = ct[keep], cfb[keep]
-    conv = analyze_drilling(ct, *xyz(conv_plan.joints, cfb), cycle.holes, cycle.r_z, cycle.xy_tolerance, surfaces)
+    others = other_cycles(job, machine, start)
     depths = [surface - cycle.planes(i)[2] for i, surface in enumerate(surfaces)]
     failures = drilling_failures(result, depths)
     if job.vibration is not None:
@@ -84,9 +111,10 @@ def drill_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.n
     result["verdict"] = verdict(criterion(job), failures, (
         f"no X/Y motion below R on feedback; {len(drilled)} holes {min(drilled, default=0):.4f}-"
         f"{max(drilled, default=0):.4f} mm deep for {', '.join(f'{to_mm(d):g}' for d in sorted(set(depths)))} mm"))
-    result["conventional_cycle_time_s"] = conv["cycle_time_s"]
-    if job.drill.order == "shortest":  # planning the other order costs a plan: only when asked
-        result["order"] = order_section(job, machine, start, result["cycle_time_s"], xyz)
+    result["conventional_cycle_time_s"] = others["conventional_cycle_time_s"]
+    if job.drill.order == "shortest":
+        result["order"] = {"drilled": "shortest", "shortest_cycle_time_s": result["cycle_time_s"],
+                           "given_cycle_time_s": others["given_cycle_time_s"]}
     if frame:  # from the cycle's start, over the first hole; in the tilted frame's limits
         result["lower_bound_s"] = lower_bound_time(tilted_frame(job, machine, kin).machine, cycle)
     else:
@@ -134,15 +162,14 @@ def obstacle_section(job: SimpleNamespace, kin: Kinematics, x: np.ndarray, y: np
              "required_mm": to_mm(OBSTACLE_MARGIN)} for k, (o, low) in enumerate(zip(job.drill.obstacles, lows))]
 
 
-def order_section(job: SimpleNamespace, machine: Machine, start: dict, cycle_time: float, xyz) -> dict:
-    """Cycle time of both hole orders: the short tour drilled (on feedback) and the order
-    given (planned and run through the drive model)."""
+def given_order_time(job: SimpleNamespace, machine: Machine, start: dict, xyz) -> float:
+    """The cycle time of the holes in the order given (planned and run through the drive
+    model), for a job drilled in its short tour."""
     given = SimpleNamespace(**{**vars(job), "drill": SimpleNamespace(**{**vars(job.drill), "order": "given"})})
     plan = planning.plan_job(given, machine, start)
     t, fb = simulated_feedback(plan, machine)
     cycle = drill_cycle(given, machine, Kinematics(machine, job.setup, job.tool))
-    given_time = analyze_drilling(t, *xyz(plan.joints, fb), cycle.holes, cycle.r_z, cycle.xy_tolerance)["cycle_time_s"]
-    return {"drilled": "shortest", "shortest_cycle_time_s": cycle_time, "given_cycle_time_s": given_time}
+    return analyze_drilling(t, *xyz(plan.joints, fb), cycle.holes, cycle.r_z, cycle.xy_tolerance)["cycle_time_s"]
 
 
 def hole_aircuts(run: Run, holes: list[dict], surfaces: list[float]) -> list[tuple[dict, dict | None]]:

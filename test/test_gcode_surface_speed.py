@@ -151,3 +151,14 @@ def test_the_judge_fails_one_rpm_along_x_and_a_spindle_above_its_cap():
     rapid = judge_surface_speed(t, radius, np.full_like(t, 0.2), held, 2.5, 1000.0, 0.15e-3)
     assert rapid["cutting_s"] == 0.0 and rapid["failures"] == [
         "no cut found at the feed per revolution of the measured spindle speed"]
+
+
+def test_the_report_page_shows_the_surface_speed_apart_from_the_gouge():
+    """The turn section's cards: a surface speed 3 % off is its own bad card, the gouge card
+    stays ok (it judges the gouge alone)."""
+    from cnc_planner.kinds.turn.page import cards
+    turn = {"max_gouge_part_mm": 0.0, "verdict": {"passed": False}, "air_feed_mm": 1.0, "naive_air_feed_mm": 2.0,
+            "surface_speed": {"requested_m_min": 120.0, "cap_rpm": 3000.0, "cutting_s": 10.0, "held_s": 8.0,
+                              "capped_s": 2.0, "max_rpm": 2990.0, "max_deviation_pct": 3.0}}
+    shown = {title: (value, status) for title, value, _, status in cards(turn)}
+    assert shown["Stock left / gouge"] == ("no gouge", "ok") and shown["Surface speed"] == ("3.00 % off", "bad")

@@ -1,15 +1,21 @@
-"""The turn section on the report page: gouges and stock left on feedback, and the air moves."""
+"""The turn section on the report page: gouges and stock left on feedback, the air moves and,
+at a constant surface speed, how well the feedback held it."""
 from __future__ import annotations
+
+from cnc_analysis.surface_speed import CAP_MARGIN, TOLERANCE
+from cnc_analysis.verdict import OVERCUT_LIMIT
+from cnc_msgs_py.units import to_mm
 
 from cnc_planner.kinds.kind import Card
 from cnc_planner.page_format import mm
 
 
 def cards(turn: dict) -> list[Card]:
-    """The section's verdict (a gouge into the part, kinds.turn.report) and its air moves."""
+    """The section's verdict (a gouge into the part, kinds.turn.report), its air moves and its
+    surface speed if it has one."""
     gouge = turn.get("max_gouge_part_mm", 0.0)
     left = turn.get("stock_left_mm")
-    passed = turn["verdict"]["passed"]
+    passed = gouge <= to_mm(OVERCUT_LIMIT)
     value = "no gouge" if passed else f"gouge {gouge:.3f} mm"
     detail = (f"into the part {mm(gouge)} on feedback, into the allowance {mm(turn.get('max_gouge_mm'))}, "
               f"commanded {mm(turn.get('max_gouge_commanded_mm'))}")
@@ -19,4 +25,17 @@ def cards(turn: dict) -> list[Card]:
             ("Air moves", f"{turn.get('air_feed_mm', 0):.1f} mm",
              f"air cut at feed, vs {turn.get('naive_air_feed_mm', 0):.1f} mm for passes started at the "
              f"virtual cylinder; path {turn.get('path_mm', 0):.0f} mm vs {turn.get('naive_path_mm', 0):.0f} mm "
-             f"in {turn.get('passes', '?')} passes", "info")]
+             f"in {turn.get('passes', '?')} passes", "info")] + _surface_speed(turn.get("surface_speed"))
+
+
+def _surface_speed(css: dict | None) -> list[Card]:
+    """The surface speed held while cutting, on feedback (cnc_analysis.surface_speed)."""
+    if css is None:
+        return []
+    off = css.get("max_deviation_pct")
+    held = (off is None or off <= 100.0 * TOLERANCE) and css["cutting_s"] > 0.0
+    within_cap = css["max_rpm"] <= css["cap_rpm"] * (1.0 + CAP_MARGIN)
+    return [("Surface speed", "no cut found" if not css["cutting_s"] else
+             f"{off:.2f} % off" if off is not None else "all at the cap",
+             f"{css['requested_m_min']:g} m/min over {css['held_s']:.1f} s of cutting, {css['capped_s']:.1f} s at "
+             f"the {css['cap_rpm']:g} rpm cap; at most {css['max_rpm']:g} rpm", "ok" if held and within_cap else "bad")]

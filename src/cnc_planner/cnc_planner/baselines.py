@@ -15,8 +15,6 @@ from __future__ import annotations
 import functools
 import json
 import os
-import pickle
-import signal
 from collections.abc import Callable
 from types import SimpleNamespace
 from typing import Any
@@ -24,6 +22,8 @@ from typing import Any
 import numpy as np
 
 from cnc_msgs_py.machine import Machine
+
+from cnc_planner.forked import Forked
 
 Baseline = Callable[[SimpleNamespace, Machine, dict[str, float]], dict]
 
@@ -55,48 +55,29 @@ def baseline(fn: Baseline) -> Baseline:
 
 
 class Beside:
-    """Baselines computed in a forked child process; ``collect`` keeps its values."""
+    """Baselines computed in a forked child process (cnc_planner.forked) at the lowest
+    priority; ``collect`` keeps their values."""
 
     def __init__(self, functions: list[Baseline], job: SimpleNamespace, machine: Machine,
                  start: dict[str, float]) -> None:
-        self.pid = 0
-        if not functions or not hasattr(os, "fork"):
-            return
-        self.read, write = os.pipe()
-        self.pid = os.fork()
-        if self.pid == 0:  # the child: compute, hand the values over, leave without cleaning up the parent's
-            status = 1
-            try:
-                os.close(self.read)
-                os.nice(19)
-                values = {_key(fn.__wrapped__, job, machine, start): fn.__wrapped__(job, machine, start)
-                          for fn in functions}
-                with os.fdopen(write, "wb") as out:
-                    pickle.dump(values, out)
-                status = 0
-            finally:
-                os._exit(status)
-        os.close(write)
+        def compute() -> dict:
+            return {_key(fn.__wrapped__, job, machine, start): fn.__wrapped__(job, machine, start) for fn in functions}
+        self.child = Forked(compute, nice=19) if functions and hasattr(os, "fork") else None
 
     def collect(self) -> None:
         """Wait for the child and keep what it computed (nothing if it failed: the report
         then computes its baselines itself)."""
-        if not self.pid:
-            return
-        with os.fdopen(self.read, "rb") as source:
-            data = source.read()
-        _, status = os.waitpid(self.pid, 0)
-        self.pid = 0
-        if status == 0:
-            _KEPT.update(pickle.loads(data))
+        if self.child is not None:
+            done, values = self.child.result()
+            self.child = None
+            if done:
+                _KEPT.update(values)
 
     def cancel(self) -> None:
         """Stop the child (the run failed: no report will want its values)."""
-        if self.pid:
-            os.kill(self.pid, signal.SIGKILL)
-            os.waitpid(self.pid, 0)
-            os.close(self.read)
-            self.pid = 0
+        if self.child is not None:
+            self.child.cancel()
+            self.child = None
 
 
 def plan_beside(doc: dict, machine: Machine) -> Beside:

@@ -5,6 +5,7 @@ Long runs are thinned for drawing only: min/max buckets keep every peak of a tra
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 
 import matplotlib
@@ -16,6 +17,8 @@ import numpy as np  # noqa: E402
 from cnc_msgs_py.units import to_mm  # noqa: E402
 
 from cnc_analysis.recording import Run  # noqa: E402
+
+from cnc_planner.forked import Forked  # noqa: E402
 
 DPI = 110
 
@@ -40,6 +43,23 @@ def save(fig: plt.Figure, path: Path) -> Path:
     fig.savefig(path, dpi=DPI)
     plt.close(fig)
     return path
+
+
+def save_all(figures: list[tuple[plt.Figure, Path]]) -> list[Path]:
+    """Render and write the figures, every other one in a forked child process: rendering
+    (Agg, PNG) is most of a report's figure time and the figures are independent. What the
+    child fails to write is written here."""
+    if len(figures) < 2 or not hasattr(os, "fork"):
+        return [save(fig, path) for fig, path in figures]
+    child = Forked(lambda: [save(fig, path) for fig, path in figures[1::2]])
+    for fig, path in figures[0::2]:
+        save(fig, path)
+    done, _ = child.result()
+    for fig, path in figures[1::2]:
+        if not done:
+            fig.savefig(path, dpi=DPI)
+        plt.close(fig)
+    return [path for _, path in figures]
 
 
 def recording_note(run: Run) -> str:

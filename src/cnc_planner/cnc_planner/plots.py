@@ -15,7 +15,7 @@ from cnc_msgs_py.machine import SPINDLE, load_machine
 
 from cnc_analysis.recording import Run
 
-from cnc_planner.drawing import COMMAND, FEEDBACK, MM, envelope, plt, recording_note, save
+from cnc_planner.drawing import COMMAND, FEEDBACK, MM, envelope, plt, recording_note, save_all
 from cnc_planner.kinds import KINDS
 from cnc_planner.report import job_window, last_job
 from cnc_planner.vibration.figures import aircut_figure, aircut_map, first_vibrating_feed
@@ -35,22 +35,18 @@ def write_plots(run: Run, report: dict, out_dir: Path) -> list[Path]:
         return []
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    written = [save(_following_error(run, window, report), out_dir / "following_error.png")]
+    drawn = [(_following_error(run, window, report), "following_error.png")]
     _, job = last_job(run)
     kind = KINDS.get(job.kind) if job is not None else None
-    if kind is None:
-        return written
-    figures = kind.figures if kind.report is not None and kind.report.key in report else None
+    figures = kind.figures if kind is not None and kind.report is not None and kind.report.key in report else None
     if figures is not None:
-        machine = load_machine(job.machine)
-        written += [save(fig, out_dir / name) for fig, name in figures.draw(run, job, machine, window, report)]
+        drawn += figures.draw(run, job, load_machine(job.machine), window, report)
     summary = report.get("aircut") or (figures.aircut(report) if figures is not None and figures.aircut else None)
     if summary and summary.get("feedback"):
         feed = first_vibrating_feed(run, report["job_id"])
         if feed is not None:
-            written.append(save(aircut_figure(feed, summary), out_dir / "aircut.png"))
-            written.append(save(aircut_map(feed), out_dir / "aircut_map.png"))
-    return written
+            drawn += [(aircut_figure(feed, summary), "aircut.png"), (aircut_map(feed), "aircut_map.png")]
+    return save_all([(fig, out_dir / name) for fig, name in drawn])
 
 
 def _following_error(run: Run, window: np.ndarray, report: dict) -> plt.Figure:

@@ -43,7 +43,7 @@ def test_the_report_takes_the_baselines_planned_beside_and_they_equal_its_own(mo
     assert own > build_report(run)["drill"]["cycle_time_s"] > 0  # overlapped beats conventional
     monkeypatch.setattr(baselines, "_KEPT", {})
     beside = plan_beside(doc, machine)
-    assert beside.pid > 0  # computed in a child process
+    assert beside.child is not None  # computed in a child process
     beside.collect()
     assert len(baselines._KEPT) == 1
     monkeypatch.setattr(planning, "plan_job", _no_planning)
@@ -76,7 +76,7 @@ def test_a_cancelled_child_is_gone_and_keeps_nothing():
     doc, machine, _ = _run("drill_row")
     job = parse_job(doc)
     beside = Beside([other_cycles], job, machine, dict(zip(machine.joint_names, np.zeros(4).tolist())))
-    pid = beside.pid
+    pid = beside.child.pid
     beside.cancel()
     with pytest.raises(ChildProcessError):
         os.waitpid(pid, 0)
@@ -85,4 +85,4 @@ def test_a_cancelled_child_is_gone_and_keeps_nothing():
 
 def test_a_kind_without_baselines_starts_no_child():
     doc, machine, _ = _run("turn_stepped")
-    assert plan_beside(doc, machine).pid == 0
+    assert plan_beside(doc, machine).child is None

@@ -29,10 +29,10 @@ from cnc_planner.kinds.drill.cycle import DrillCycle, DrillError
 from cnc_planner.kinds.drill.z_axis import ZAxis
 from cnc_planner.motion.builder import PlanBuilder
 from cnc_planner.motion.compensation import tolerance_drives
-from cnc_planner.motion.plan_check import BLOCK_S
 from cnc_planner.motion.timeline import Plan
 
 SAFETY_ROUNDS = 40  # drive-model rounds before giving up on a safe timing
+LAG_BLOCK_S = 5.0  # s of the cycle simulated at a time (see _feedback)
 
 # A cycle written into a builder for given gaps (e_down, e_up) and air accelerations
 # (overlap.py, conventional.py); the last argument asks for each air move's energy.
@@ -43,12 +43,13 @@ def _feedback(machine: Machine, plan: Plan, ts: np.ndarray, period: float, joint
               drives: list[Drive]) -> np.ndarray:
     """Feedback (len(ts), plants, len(joints)) of each drive (one for every joint listed), in
     an order of its own, from rest at the plan's position at ts[0], all in one model (a column
-    per joint and drive, those of one delay side by side); the plan sampled BLOCK_S at a time
-    (the same values as in one piece, without the whole cycle's setpoints in memory)."""
+    per joint and drive, those of one delay side by side); the plan sampled LAG_BLOCK_S at a
+    time (the same values as in one piece), so that a block's references, copied to every
+    drive's columns, stay in the cache (30 s blocks copied more than they simulated)."""
     drives = sorted(drives, key=lambda d: d.delay)
     model = DriveModel.columns(machine, period, [(j, d) for d in drives for j in joints])
     out = np.empty((len(ts), len(drives) * len(joints)))
-    block = max(2, int(BLOCK_S / period))
+    block = max(2, int(LAG_BLOCK_S / period))
     for lo in range(0, len(ts), block):
         p, v, a = (np.tile(x, len(drives)) for x in plan.sample(ts[lo:lo + block], joints))
         if lo == 0:

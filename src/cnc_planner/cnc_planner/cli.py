@@ -77,7 +77,8 @@ def run_main(argv: list[str] | None = None) -> int:
     from cnc_planner.nodes import Nodes
 
     # The nodes start first and come up while this process loads rclpy and the report's code;
-    # the report's baselines are planned meanwhile, in a child process (before rclpy's threads).
+    # the report's baselines are planned meanwhile, in a child process (forked before rclpy's
+    # threads start) that the report collects.
     nodes = Nodes(machine.name, namespace=args.namespace, bridge_params={"plant": plant} if plant else None)
     try:
         beside = plan_beside(doc, machine)
@@ -105,8 +106,6 @@ def run_main(argv: list[str] | None = None) -> int:
             progress.close()
     finally:
         nodes.stop()  # stopped by the run already, unless it failed before it began
-    if beside is not None:
-        beside.collect()
     run = read_run(out / "bag")
     report = build_report(run)
     _write_json(out / "report.json", report)

@@ -22,6 +22,7 @@ from cnc_msgs_py.schema import JobError
 from cnc_analysis import summary
 from cnc_analysis.recording import Run
 
+from cnc_planner.baselines import beside, drop_pending
 from cnc_planner.executive import event_doc
 from cnc_planner.kinds import KINDS
 from cnc_planner.motion.timeline import Event, Plan
@@ -81,13 +82,16 @@ def build_report(run: Run, machine: Machine | None = None) -> dict:
         machine = machine or load_machine(job.machine)
     except MachineError:
         return report
-    report["drives"] = drives_section(run, machine)
     window = job_window(run, status["job_id"])
     section = KINDS[job.kind].report
+    # The section's baselines are planned on the other core while the run is judged.
+    beside(section, job, machine, {j: float(run.feedback[window][0, run.column(j)]) for j in run.joints})
+    report["drives"] = drives_section(run, machine)
     if section is not None:
         report[section.key] = section.judge(run, job, machine, window)
     if job.vibration is not None and not (section is not None and section.judges_chips):
         report["aircut"] = aircut_section(run)
+    drop_pending()
     return report
 
 

@@ -23,6 +23,7 @@ JOBS = Path(__file__).resolve().parents[3] / "config" / "jobs"
 @pytest.fixture(autouse=True)
 def nothing_kept(monkeypatch):
     monkeypatch.setattr(baselines, "_KEPT", {})
+    monkeypatch.setattr(baselines, "_PENDING", [])
 
 
 def _run(name: str):
@@ -33,33 +34,40 @@ def _run(name: str):
                                                                              machine.home_position))), machine)
 
 
+def _start(run) -> dict[str, float]:
+    return {j: float(run.feedback[0, run.column(j)]) for j in run.joints}
+
+
 def _no_planning(*_args, **_kwargs):
     raise AssertionError("the report planned a baseline it was given")
 
 
 def test_the_report_takes_the_baselines_planned_beside_and_they_equal_its_own(monkeypatch):
     doc, machine, run = _run("drill_row")
-    own = build_report(run)["drill"]["conventional_cycle_time_s"]
-    assert own > build_report(run)["drill"]["cycle_time_s"] > 0  # overlapped beats conventional
-    monkeypatch.setattr(baselines, "_KEPT", {})
+    own = other_cycles.__wrapped__(parse_job(doc), machine, _start(run))["conventional_cycle_time_s"]
     beside = plan_beside(doc, machine)
     assert beside.child is not None  # computed in a child process
-    beside.collect()
-    assert len(baselines._KEPT) == 1
     monkeypatch.setattr(planning, "plan_job", _no_planning)
-    assert build_report(run)["drill"]["conventional_cycle_time_s"] == own
+    drill = build_report(run)["drill"]
+    assert drill["conventional_cycle_time_s"] == own > drill["cycle_time_s"] > 0  # overlapped beats conventional
+    assert baselines._PENDING == []  # collected by the report
 
 
-def test_a_run_that_started_elsewhere_plans_its_own_baselines(monkeypatch):
+def test_a_run_that_started_elsewhere_gets_its_own_baselines():
     doc, machine, run = _run("drill_row")
-    beside = plan_beside(doc, machine)
-    beside.collect()
+    plan_beside(doc, machine).collect()
     run.feedback[:, run.column("x")] += 1e-6  # not the home cnc-run's bridge starts at
-    calls = []
-    real = planning.plan_job
-    monkeypatch.setattr(planning, "plan_job", lambda *a, **k: calls.append(1) or real(*a, **k))
     build_report(run)
-    assert calls
+    assert len(baselines._KEPT) == 2  # the one for home, and the one build_report had planned beside
+    assert any(dict(key[3])["x"] == _start(run)["x"] for key in baselines._KEPT)
+
+
+def test_a_report_plans_its_baselines_beside_and_gives_the_same_numbers_without(monkeypatch):
+    _, _, run = _run("drill_row")
+    beside_report = build_report(run)
+    monkeypatch.setattr(baselines, "_KEPT", {})
+    monkeypatch.delattr(baselines.os, "fork")  # no child: computed in place
+    assert build_report(run) == beside_report
 
 
 def test_a_failing_child_leaves_nothing_and_the_report_computes_it():

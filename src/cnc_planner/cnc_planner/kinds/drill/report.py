@@ -91,7 +91,6 @@ def drill_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.n
     for hole in result["holes"]:
         hole["mode"] = modes.get(hole["index"])
         hole["job_index"] = cycle.order[hole["index"]] if cycle.order else hole["index"]
-    others = other_cycles(job, machine, start)
     depths = [surface - cycle.planes(i)[2] for i, surface in enumerate(surfaces)]
     failures = drilling_failures(result, depths)
     if job.vibration is not None:
@@ -111,6 +110,7 @@ def drill_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.n
     result["verdict"] = verdict(criterion(job), failures, (
         f"no X/Y motion below R on feedback; {len(drilled)} holes {min(drilled, default=0):.4f}-"
         f"{max(drilled, default=0):.4f} mm deep for {', '.join(f'{to_mm(d):g}' for d in sorted(set(depths)))} mm"))
+    others = other_cycles(job, machine, start)  # last: planned meanwhile (cnc_planner.baselines)
     result["conventional_cycle_time_s"] = others["conventional_cycle_time_s"]
     if job.drill.order == "shortest":
         result["order"] = {"drilled": "shortest", "shortest_cycle_time_s": result["cycle_time_s"],

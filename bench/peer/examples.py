@@ -22,8 +22,10 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 NCFILES = Path("/usr/share/linuxcnc/ncfiles")
@@ -44,7 +46,9 @@ LEFT_OUT = {
     "nestedcall.ngc": "language demo (its own 'callsub' typo is refused by rs274 too)",
     "increment.ngc": "a subroutine file, moves no axis of its own",
 }
-MACHINE_REASONS = ("outside its travel", "has no", "exceeds the spindle", "cannot run")
+# a machine reason: travel, an axis it lacks, the spindle, a tool of its table that does not fit the
+# program (a cutter too big for a compensated entry)
+MACHINE_REASONS = ("outside its travel", "has no", "exceeds the spindle", "cannot run", "than the tool radius")
 # the program asks for what the machine must not do or the job does not give: drilling with
 # the spindle off, a work offset the job has no values for, a position it takes from where the
 # machine happens to stand (G92 before any move, without program.start)
@@ -101,10 +105,22 @@ def machine_table(machine: str) -> Path:
     return next(d / f"{machine}.tbl" for d in machine_dirs() if (d / f"{machine}.tbl").is_file())
 
 
+def inch_table(text: str) -> str:
+    """A tool.tbl in mm as rs274 must be given it: standalone, it is an inch machine and reads
+    the table's lengths and diameters (X..W, D) in inches."""
+    def scale(m: re.Match) -> str:
+        return f"{m.group(1)}{float(m.group(2)) / 25.4:.9f}"
+    return "\n".join(re.sub(r"\b([XYZABCUVWD])([-+]?\d*\.?\d+)", scale, line.split(";")[0], flags=re.I)
+                     for line in text.splitlines()) + "\n"
+
+
 def rs274(path: Path, machine: str) -> str:
-    """rs274 -g's output of a file with the machine's tool table, COMMENT lines left out."""
-    out = subprocess.run(["rs274", "-t", str(machine_table(machine)), "-g", str(path)],
-                         capture_output=True, text=True, timeout=60)
+    """rs274 -g's output of a file with the machine's tool table (in its inches), COMMENT lines
+    left out."""
+    with tempfile.TemporaryDirectory() as tmp:
+        table = Path(tmp) / "tool.tbl"
+        table.write_text(inch_table(machine_table(machine).read_text()))
+        out = subprocess.run(["rs274", "-t", str(table), "-g", str(path)], capture_output=True, text=True, timeout=60)
     return "\n".join(ln for ln in (out.stdout + "\n" + out.stderr).splitlines() if " COMMENT(" not in ln)
 
 

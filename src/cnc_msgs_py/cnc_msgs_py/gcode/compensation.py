@@ -15,10 +15,18 @@ meet (the cutter would gouge the contour), a path that doubles back on itself.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
+
+from . import arcs
+from .lexer import Block, GcodeError, word_text
+
+if TYPE_CHECKING:
+    from .translate import Translator
 
 Point2 = tuple[float, float]
 EPS = 1.0e-9
+COMP_PLANES = (17.0, 18.0)  # LinuxCNC compensates in XY and XZ
 
 
 @dataclass(frozen=True)
@@ -53,6 +61,14 @@ class Segment:
         t1 = math.atan2(self.end[1] - self.center[1], self.end[0] - self.center[0])
         s = ((t0 - t1) if self.clockwise else (t1 - t0)) % (2.0 * math.pi)
         return s if s > EPS else 2.0 * math.pi
+
+
+class OffsetError(ValueError):
+    """An offset the path cannot follow; ``index`` is the segment it is about."""
+
+    def __init__(self, index: int, reason: str) -> None:
+        super().__init__(reason)
+        self.index = index
 
 
 def _right(t: Point2) -> Point2:
@@ -123,36 +139,214 @@ def _kept(original: Segment, trimmed: Segment) -> bool:
     return original.sweep() >= 2.0 * math.pi - EPS or s <= original.sweep() + EPS and s < 2.0 * math.pi - EPS
 
 
-def offset_path(path: list[Segment], d: float) -> list[Segment]:
+def _entry(start: Point2, offset: Segment) -> Segment:
+    """LinuxCNC's entry move: from where the tool stands (uncompensated) to the end of the
+    first segment's offset (as the next corner left it); an arc gets the center that makes it
+    an arc from the start, on the end's radius (tangent to the offset path there)."""
+    end = offset.end
+    if offset.center is None:
+        return Segment(start, end)
+    c, (sa, sb) = offset.center, start
+    m = ((sa + end[0]) / 2.0, (sb + end[1]) / 2.0)
+    chord = (end[0] - sa, end[1] - sb)
+    radial = (end[0] - c[0], end[1] - c[1])
+    den = chord[0] * radial[0] + chord[1] * radial[1]
+    if abs(den) < EPS:
+        raise OffsetError(0, "the entry arc cannot reach its compensated end")
+    u = ((m[0] - c[0]) * chord[0] + (m[1] - c[1]) * chord[1]) / den  # c + u * radial lies on the bisector
+    return Segment(start, end, (c[0] + u * radial[0], c[1] + u * radial[1]), offset.clockwise)
+
+
+def offset_pieces(path: list[Segment], d: float, entry: bool = False) -> list[tuple[int, Segment]]:
     """The path offset by ``d`` (right of travel if positive), corners joined as LinuxCNC
-    joins them: arcs about outside corners, inside corners trimmed to their crossing.
+    joins them: arcs about outside corners, inside corners trimmed to their crossing. Each
+    piece comes with the index of the segment it belongs to (a corner's arc to the segment
+    after it). ``entry``: the first segment is LinuxCNC's entry move (``_entry``): its offset
+    meets the next as any other, then starts where the tool stood.
 
     Raises:
-        ValueError: an inside arc or corner the offset cannot follow, with why.
+        OffsetError: an inside arc or corner the offset cannot follow, with why and where.
     """
     if abs(d) < EPS:
-        return list(path)
-    moved = [offset_segment(s, d) for s in path]
-    out: list[Segment] = [moved[0]]
+        return list(enumerate(path))
+    moved = []
+    for k, seg in enumerate(path):
+        try:
+            moved.append(offset_segment(seg, d))
+        except ValueError as err:
+            raise OffsetError(k, str(err)) from None
+    out: list[tuple[int, Segment]] = [(0, moved[0])]
     for k in range(1, len(path)):
         corner = path[k].start
         t1, t2 = path[k - 1].tangent(True), path[k].tangent(False)
         turn, ahead = _cross(t1, t2), t1[0] * t2[0] + t1[1] * t2[1]
-        nxt = moved[k]
+        nxt, (owner, last) = moved[k], out[-1]
         if abs(turn) < EPS and ahead > 0.0:
-            out.append(nxt)  # tangent: the offsets meet
+            out.append((k, nxt))  # tangent: the offsets meet
             continue
         if abs(turn) < EPS:
-            raise ValueError(f"the path turns back on itself at ({corner[0]:g}, {corner[1]:g})")
+            raise OffsetError(k, f"the path turns back on itself at ({corner[0]:g}, {corner[1]:g})")
         if turn * d > 0.0:  # an outside corner: an arc about it, clockwise when offset to the left
-            out += [Segment(out[-1].end, nxt.start, corner, d < 0.0), nxt]
+            out += [(k, Segment(last.end, nxt.start, corner, d < 0.0)), (k, nxt)]
             continue
-        meet = _meets(out[-1], nxt, corner)
-        prev = replace(out[-1], end=meet) if meet is not None else None
-        nxt_trimmed = replace(nxt, start=meet) if meet is not None else None
-        if prev is None or nxt_trimmed is None or not _kept(out[-1], prev) or not _kept(nxt, nxt_trimmed):
-            raise ValueError(f"the inside corner at ({corner[0]:g}, {corner[1]:g}) is too small for the offset "
+        meet = _meets(last, nxt, corner)
+        if meet is None or not _kept(last, replace(last, end=meet)) or not _kept(nxt, replace(nxt, start=meet)):
+            raise OffsetError(k, f"the inside corner at ({corner[0]:g}, {corner[1]:g}) is too small for the offset "
                              f"{abs(d):g} mm (the cutter would gouge it)")
-        out[-1] = prev
-        out.append(nxt_trimmed)
+        out[-1] = (owner, replace(last, end=meet))
+        out.append((k, replace(nxt, start=meet)))
+    if entry:  # the first offset, as its corner left it, from the uncompensated start
+        out[0] = (0, _entry(path[0].start, out[0][1]))
     return out
+
+
+def offset_path(path: list[Segment], d: float) -> list[Segment]:
+    """offset_pieces without the owners."""
+    return [seg for _, seg in offset_pieces(path, d)]
+
+
+# ---- G40/G41/G42/G41.1/G42.1 in the interpreter ----------------------------------------------
+@dataclass
+class Move:
+    """A G0/G1/G2/G3 programmed while compensation is on (program coordinates, mm), with
+    the operation it belongs to as it stood then (its key and its job document's header)."""
+
+    line: int
+    rapid: bool
+    feed: float | None
+    start: dict[str, float]
+    end: dict[str, float]
+    key: tuple
+    common: dict
+    center: Point2 | None = None
+    clockwise: bool = False
+
+
+@dataclass
+class State:
+    """Compensation in force: the offset (mm, > 0 right of travel: G42) in the plane's axes,
+    and the moves programmed since it came on, offset when it goes off (G40, the end)."""
+
+    offset: float = 0.0
+    plane: tuple[str, str] | None = None  # None: off
+    moves: list[Move] = field(default_factory=list)
+    exiting: bool = False  # the move after G40 must be straight
+
+    @property
+    def on(self) -> bool:
+        return self.plane is not None
+
+
+def words(tr: "Translator", b: Block, used: set[str], g: list[float]) -> None:
+    """G40 (the moves so far offset and emitted), G41/G42 [D<tool>], G41.1/G42.1 D<diameter> [L]."""
+    st = tr.comp
+    if 40.0 in g and st.on:
+        finish(tr)
+        st.exiting = True
+    code = next((c for c in g if c in (41.0, 42.0, 41.1, 42.1)), None)
+    if code is None:
+        return
+    name = word_text("G", code)
+    if st.on:
+        raise GcodeError(b.line, name, "cannot turn cutter radius compensation on when it is on (G40 first)")
+    if tr.state.plane not in COMP_PLANES:
+        raise GcodeError(b.line, name, "cutter radius compensation is allowed only in the XY and XZ planes (G17, G18)")
+    if code in (41.1, 42.1):
+        if "D" not in b.words or b.words["D"] < 0.0:
+            raise GcodeError(b.line, name, "needs D, the cutter's diameter (>= 0)")
+        used.update(k for k in "DL" if k in b.words)  # L: a lathe tool's orientation, the side is G41/G42's
+        radius = tr.state.length(b.words["D"]) / 2.0
+    else:
+        tool = tr._tool_number(b, "D") if "D" in b.words else tr.state.tool
+        used.update("D" if "D" in b.words else "")
+        radius = (tr.tool_entry(tool).get("diameter") or 0.0) / 2.0
+    st.offset = radius if code in (42.0, 42.1) else -radius
+    from .translate import PLANES  # the translator imports this module: read when compensation comes on
+    st.plane = PLANES[tr.state.plane][0]
+    st.moves = []
+
+
+def check_line(tr: "Translator", b: Block, g: list[float], m: list[float]) -> None:
+    """What LinuxCNC refuses while compensation is on: tool changes, G53, offset changes,
+    canned cycles (their moves are not compensated)."""
+    if not tr.comp.on:
+        return
+    refused = [(m, (6.0, 61.0), "M", "change tools"), (g, (53.0,), "G", "use G53"),
+               (g, (10.0, 52.0, 92.0, 92.1, 92.2, 92.3), "G", "change axis offsets"),
+               (g, (54.0, 55.0, 56.0, 57.0, 58.0, 59.0, 59.1, 59.2, 59.3), "G", "change coordinate systems"),
+               (g, (70.0, 71.0, 72.0, 73.0, 76.0, 81.0, 82.0, 83.0), "G", "use canned cycles")]
+    for codes, which, letter, what in refused:
+        code = next((c for c in codes if c in which), None)
+        if code is not None:
+            raise GcodeError(b.line, word_text(letter, code), f"cannot {what} with cutter radius compensation on "
+                                                               "(G40 first)")
+    if tr.state.motion in (73.0, 81.0, 82.0, 83.0) and b.has_axes() and not any(c in (0.0, 1.0, 2.0, 3.0) for c in g):
+        raise GcodeError(b.line, word_text("G", tr.state.motion), "cannot use canned cycles with cutter radius "
+                                                                  "compensation on (G40 first)")
+
+
+def add(tr: "Translator", line: int, rapid: bool, feed: float | None, start: dict, end: dict,
+        center: Point2 | None = None, clockwise: bool = False) -> bool:
+    """A move while compensation is on, kept to be offset (True), or the move just after G40
+    checked (False: the caller moves as usual)."""
+    st = tr.comp
+    if not st.on:
+        if st.exiting and center is not None:
+            raise GcodeError(line, "G2" if clockwise else "G3", "the move just after cutter compensation goes off "
+                                                               "(G40) must be straight, not an arc")
+        st.exiting = False
+        return False
+    a, c = st.plane
+    if a not in start or c not in start:
+        raise GcodeError(line, "G41/G42", "compensation needs the tool's position in its plane: move "
+                                          f"{a.upper()} and {c.upper()} first")
+    st.moves.append(Move(line, rapid, feed, dict(start), dict(end), tr._key(), tr._common("move"), center, clockwise))
+    return True
+
+
+def finish(tr: "Translator") -> None:
+    """Offset the moves programmed since compensation came on and emit them: LinuxCNC's entry
+    (the first move in the plane ends offset perpendicular to it, from where the tool
+    stood), corners joined by offset_pieces, moves out of the plane (Z alone) where the
+    path stands. Compensation stays on only in ``tr.comp``'s caller's hands."""
+    st = tr.comp
+    a, c = st.plane
+    moves, st.plane, st.moves = st.moves, None, []
+    planar = [k for k, mv in enumerate(moves) if (mv.start[a], mv.start[c]) != (mv.end[a], mv.end[c])]
+    if not planar:
+        for mv in moves:
+            tr._move(mv.line, {"rapid": mv.end} if mv.rapid else {"linear": mv.end, "feed": mv.feed}, mv.key, mv.common)
+        return
+    first = moves[planar[0]]
+    radius = abs(st.offset)
+    if first.center is None and math.hypot(first.end[a] - first.start[a], first.end[c] - first.start[c]) <= radius:
+        raise GcodeError(first.line, "G41/G42", f"the entry move is not longer than the tool radius ({radius:g} mm)")
+    path = [Segment((moves[k].start[a], moves[k].start[c]), (moves[k].end[a], moves[k].end[c]),
+                    moves[k].center, moves[k].clockwise) for k in planar]
+    try:
+        pieces = offset_pieces(path, st.offset, entry=True)
+    except OffsetError as err:
+        raise GcodeError(moves[planar[err.index]].line, "G41/G42", str(err)) from None
+    at = dict(first.start)
+    for k, mv in enumerate(moves):
+        if k not in planar:
+            at = {**at, **{axis: v for axis, v in mv.end.items() if axis not in (a, c)}}
+            _emit(tr, mv, at)
+            continue
+        i = planar.index(k)
+        own = [seg for owner, seg in pieces if owner == i]
+        for n, seg in enumerate(own):
+            rest = {axis: v for axis, v in at.items() if axis not in (a, c)}
+            along = n == len(own) - 1  # the segment itself; before it, the arc about its corner keeps Z
+            points = [(seg.end[0], seg.end[1], 1.0)] if seg.center is None else \
+                arcs.chords(seg.start, seg.end, seg.center, seg.clockwise)
+            for pa, pc, share in points:
+                third = {axis: v + share * (mv.end[axis] - v) if along and axis in mv.end else v
+                         for axis, v in rest.items()}
+                at = {**at, **third, a: pa, c: pc}
+                _emit(tr, mv, at)
+
+
+def _emit(tr: "Translator", mv: Move, target: dict) -> None:
+    entry = {"rapid": dict(target)} if mv.rapid else {"linear": dict(target), "feed": mv.feed}
+    tr._move(mv.line, entry, mv.key, mv.common)

@@ -18,7 +18,8 @@ G_GROUPS: dict[float, str] = {
     17.0: "plane", 18.0: "plane", 19.0: "plane",
     7.0: "lathe diameter", 8.0: "lathe diameter",
     20.0: "units", 21.0: "units",
-    40.0: "cutter compensation",
+    40.0: "cutter compensation", 41.0: "cutter compensation", 42.0: "cutter compensation",
+    41.1: "cutter compensation", 42.1: "cutter compensation",
     43.0: "tool length", 49.0: "tool length",
     54.0: "work offset", 55.0: "work offset", 56.0: "work offset", 57.0: "work offset", 58.0: "work offset",
     59.0: "work offset", 59.1: "work offset", 59.2: "work offset", 59.3: "work offset",
@@ -30,10 +31,10 @@ G_GROUPS: dict[float, str] = {
     98.0: "canned cycle return", 99.0: "canned cycle return",
 }
 G_REFUSED: dict[float, str] = {
-    33.0: "use G76: single threading moves are not supported",
-    41.0: "cutter radius compensation is not supported",
-    42.0: "cutter radius compensation is not supported",
-    84.0: "tapping is not supported",
+    33.0: "spindle-synchronised moves are not planned one by one: a move operation cannot lock its feed to "
+          "the spindle angle (our thread cycle is G76)",
+    33.1: "rigid tapping is not a method of ours: the drill method does not reverse the spindle in step with Z",
+    84.0: "tapping is not a method of ours: the drill method does not reverse the spindle in step with Z",
     93.0: "inverse time feed is not supported",
 }
 M_GROUPS: dict[float, str] = {2.0: "stop", 30.0: "stop", 3.0: "spindle", 4.0: "spindle", 5.0: "spindle",

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from . import arcs, offsets, surface_speed, system
+from . import arcs, compensation, offsets, surface_speed, system
 from .control import Executor
 from .drilling import hole
 from .finishing import g70
@@ -85,6 +85,7 @@ class Translator:
         self.line = 0  # the line running, for #<_line>
         self.tools = {n: dict(entry) for n, entry in ctx.tool_table.items()}  # G10 L1/L10 edit this copy
         self.offsets = offsets.Offsets(ctx.setup, ctx.work_offsets)  # G10 L2/L20, G92, G52 edit these
+        self.comp = compensation.State()  # G41/G42: the moves wait for their offset until G40
 
     # ---- the program
     def run(self, text: str) -> list[Operation]:
@@ -105,6 +106,8 @@ class Translator:
         if not ended and not closed_by_percent(text):
             last = self.executor.main.lines[-1].line if self.executor.main.lines else 0
             raise GcodeError(last + 1, "end of file", "the program ends without M2 or M30")
+        if self.comp.on:
+            compensation.finish(self)  # the program's end turns compensation off, as LinuxCNC's does
         self._flush()
         if not self.operations:
             raise GcodeError(1, "program", "moves no axis: nothing to plan")
@@ -157,6 +160,7 @@ class Translator:
         s = self.state
         g = [round(v, 1) for v in b.g]
         m = [round(v, 1) for v in b.m]
+        compensation.check_line(self, b, g, m)
         if 20.0 in g or 21.0 in g:
             s.inch = 20.0 in g
         if 94.0 in g or 95.0 in g:
@@ -197,6 +201,7 @@ class Translator:
                 s.plane = plane
         if 7.0 in g or 8.0 in g:
             s.diameter = 7.0 in g
+        compensation.words(self, b, used, g)
         if 43.0 in g:
             s.length_tool = self._tool_number(b, "H") if "H" in b.words else s.tool
             used.add("H")
@@ -331,10 +336,10 @@ class Translator:
             target = offsets.g53_target(self, b, used) if 53.0 in g else self._target(b, used)
             if target == before:
                 return  # no motion: the tool is there already (our cycles end where LinuxCNC's return to)
-            if s.motion == 0.0:
-                self._move(b.line, {"rapid": target})
-            else:
-                self._move(b.line, {"linear": target, "feed": self._feed_mm_min(b.line, "G1")})
+            feed = None if s.motion == 0.0 else self._feed_mm_min(b.line, "G1")
+            if compensation.add(self, b.line, feed is None, feed, before, target):
+                return
+            self._move(b.line, {"rapid": target} if feed is None else {"linear": target, "feed": feed})
         else:
             self._arc(b, used)
 
@@ -395,6 +400,8 @@ class Translator:
         except ValueError as err:
             raise GcodeError(b.line, name, str(err)) from None
         feed = self._feed_mm_min(b.line, name)
+        if compensation.add(self, b.line, False, feed, before, end_pos, center, s.motion == 2.0):
+            return
         third = next(k for k in AXES if k not in (a, c))
         for pa, pc, share in arcs.chords(start, end, center, s.motion == 2.0):
             target = {**end_pos, a: pa, c: pc}
@@ -413,12 +420,13 @@ class Translator:
                "tool": tool, "setup": self.offsets.setup(s.work_offset), **surface_speed.spindle(s)}
         return doc
 
-    def _begin(self, line: int, kind: str, key: tuple, block: dict | list) -> dict | list:
-        """The open operation's block if it continues with ``key``, else a new operation's."""
+    def _begin(self, line: int, kind: str, key: tuple, block: dict | list, common: dict | None = None) -> dict | list:
+        """The open operation's block if it continues with ``key``, else a new operation's (its header
+        ``common``, as _common made it when the move was programmed, or now)."""
         if self.current is not None and self.current_key == (kind, key):
             return self.current.doc[kind]
         self._flush()
-        doc = self._common(kind)
+        doc = self._common(kind) if common is None else dict(common)
         doc[kind] = block
         if self.vibration is not None and kind != "move":  # a move operation takes it once it has a feed move
             doc["vibration"] = dict(self.vibration)
@@ -440,8 +448,8 @@ class Translator:
         vib = None if self.vibration is None else tuple(sorted(self.vibration.items()))
         return (s.tool, self.applied_length(), self.offsets.key(s.work_offset), surface_speed.key(s), vib)
 
-    def _move(self, line: int, entry: dict) -> None:
-        self._begin(line, "move", self._key(), []).append(entry)
+    def _move(self, line: int, entry: dict, key: tuple | None = None, common: dict | None = None) -> None:
+        self._begin(line, "move", self._key() if key is None else key, [], common).append(entry)
 
     def _need_spindle(self, line: int, word: str) -> None:
         if not (self.state.spindle_on and self.state.speed > 0.0):

@@ -143,3 +143,15 @@ def test_linuxcncs_refusals(text, reason):
     with pytest.raises(GcodeError) as err:
         _moves(text + "\nG40", tool_table={1: {"diameter": 2.0}})
     assert str(err.value).startswith(reason), str(err.value)
+
+
+def test_a_lathe_tool_compensates_by_nothing_and_its_move_operation_plans():
+    text = ("(CNC,MACHINE lathe)\nG18 G21 G8 G90 G95\nT2 M6\nM3 S1000\nF0.1\nG0 X12 Z4\nG42 G1 X5 Z1\nG1 Z-10\n"
+            "G1 X8\nG40 G0 X14 Z4\nM2\n")
+    job = parse_job({"schema": "cnc_job/1", "job_id": "t", "kind": "program", "machine": "lathe",
+                     "program": {"gcode": text}})  # the machine's table: T2 is an insert, D0
+    (_, op, doc), = job.program.operations
+    assert "diameter" not in doc["tool"]
+    assert [(m["linear"]["x"], m["linear"]["z"]) for m in doc["move"] if "linear" in m] == [
+        (5.0, 1.0), (5.0, -10.0), (8.0, -10.0)]
+    assert plan_job(job, load_machine("lathe")).duration > 0.0

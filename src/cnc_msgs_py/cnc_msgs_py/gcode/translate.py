@@ -414,6 +414,8 @@ class Translator:
         s = self.state
         tool = dict(self.tool_entry(s.tool))
         tool.pop("length", None)
+        if kind == "move" and tool.get("diameter") == 0.0:
+            del tool["diameter"]  # a lathe tool (D0): a move plans no cutter, and its schema takes none or > 0
         if self.applied_length():
             tool["length"] = self.applied_length()
         doc = {"schema": "cnc_job/1", "job_id": "", "kind": kind, "machine": self.ctx.machine,

@@ -69,6 +69,8 @@ def test_a_surface_speed_in_feet_per_minute_is_converted_once():
      "line 5: G71: at constant surface speed the feed is per revolution (G95)"),
     (HEAD + "G96 D2000 S150 M3\nG0 X22 Z7\nG1 X18 F0.1\nM2",
      "line 4: G1: feed moves at constant surface speed are not supported yet"),
+    (HEAD + "G96 D2000 S150 M3\nG0 X22 Z7\nG70 Q100\nM2\no100 sub\nG1 X10 Z5\no100 endsub",
+     "line 4: G70: feed moves at constant surface speed are not supported yet"),
     (HEAD + "G96 D-5 S150 M3\nM2", "line 2: D-5: the maximum rpm must be >= 0"),
     (HEAD + "G96 D2000 M3\nM2", "line 2: G96: needs S, the surface speed"),
     (HEAD + "M3 S500\nG0 X22 Z7\nF0.15\nG96 G71 Q100 X20 Z5 D0.2 I1.5 R0.5\nM2\no100 sub\nG1 X10 Z5\no100 endsub",
@@ -113,6 +115,40 @@ def test_a_thread_job_and_a_mill_refuse_a_surface_speed_and_move_nothing():
             "surface_speed": {"m_min": 100}, "move": [{"rapid": {"x": 10}}]}
     status = executive.submit(json.dumps(move))  # refused before any setpoint
     assert status.state == "rejected" and status.reason.startswith("surface_speed: needs a lathe"), status.reason
+
+
+FACE = {"schema": "cnc_job/1", "job_id": "face", "kind": "move", "machine": "lathe",
+        "surface_speed": {"m_min": 150, "max_rpm": 3000},
+        "move": [{"rapid": {"x": 21, "z": 0}}, {"linear": {"x": -0.4}, "feed_per_rev": 0.1}, {"rapid": {"z": 2}}]}
+
+
+def test_a_face_cut_past_the_axis_follows_the_radius_down_to_the_cap():
+    """A move job facing from a radius of 21 mm to 0.4 mm past the axis at 0.1 mm/rev: the
+    planned spindle holds 150 m/min within 1 % until 3000 rpm caps it (below 8 mm), the feed
+    per revolution of the speed it has throughout (else the judge finds no cut)."""
+    machine = load_machine("lathe")
+    job = parse_job(FACE)
+    plan = plan_job(job, machine, {"x": 0.03, "z": 0.01})
+    t = np.arange(0.0, plan.duration, 1e-3)
+    p, v, _ = plan.sample(t)
+    x, z, s = (plan.joints.index(j) for j in ("x", "z", "spindle"))
+    figures = judge_surface_speed(t, p[:, x], np.hypot(v[:, x], v[:, z]), v[:, s], job.surface_speed.m_min,
+                                  job.surface_speed.max_rpm, 0.1e-3)
+    assert figures["failures"] == [] and figures["max_deviation_pct"] <= 1.0 + 1e-6
+    assert figures["held_s"] > 4.0 and figures["capped_s"] > 1.5 and figures["max_rpm"] <= 2970.0 + 1e-6
+
+
+@pytest.mark.parametrize("move,field,reason", [
+    ({"linear": {"x": 1}, "feed": 60, "feed_per_rev": 0.1}, "move[0].feed", "give feed or feed_per_rev, not both"),
+    ({"rapid": {"x": 1}, "feed_per_rev": 0.1}, "move[0].feed_per_rev", "only a linear move takes a feed"),
+    ({"linear": {"x": 1}, "feed_per_rev": 0.0001}, "move[0].feed_per_rev", "must be >= 0.001 mm/rev"),
+])
+def test_bad_move_feeds_are_refused_by_field(move, field, reason):
+    with pytest.raises(JobError) as err:
+        parse_job({**FACE, "move": [move]})
+    assert err.value.field == field and reason in err.value.reason
+    with pytest.raises(JobError, match=r"^move\[0\]\.feed_per_rev: a feed per revolution needs the spindle turning"):
+        parse_job({**FACE, "surface_speed": None, "move": [{"linear": {"x": 1}, "feed_per_rev": 0.1}]})
 
 
 def test_the_planned_spindle_holds_the_surface_speed_along_x():

@@ -9,9 +9,10 @@ What turns at a surface speed here: G71 roughing (our turn operation carries
 ``surface_speed``, and the planner follows the radius along its passes) and the rapids
 around it (a move operation that only positions). What cannot, refused at its word with
 why: threads (G76: the lead is locked to the spindle angle), a (CNC,VIBRATION) on the
-roughing (locked to one spindle speed), drilling, and feed moves G1/G2/G3 (not yet). At a
-surface speed the feed of a G71 must be per revolution (G95): the rpm changes along the cut,
-and a feed per minute would change the chip with it.
+roughing (locked to one spindle speed), drilling, and feed moves G1/G2/G3 and G70's finishing
+pass (not yet: move jobs take ``feed_per_rev`` at a surface speed, the front end does not
+write it yet). At a surface speed the feed of a G71 must be per revolution (G95): the rpm
+changes along the cut, and a feed per minute would change the chip with it.
 """
 from __future__ import annotations
 
@@ -88,10 +89,10 @@ def check_motion(tr: "Translator", b: Block, g: list[float]) -> None:
                                        "G97 S.. before it, not G96")
     if code in DRILL_CYCLES:
         raise GcodeError(b.line, word, "a drill turns at one rpm: G97 S.. before it, not G96")
-    if code in (1.0, 2.0, 3.0):
+    if code in (1.0, 2.0, 3.0, 70.0):  # our move operations: the front end gives them a feed per minute
         raise GcodeError(b.line, word, "feed moves at constant surface speed are not supported yet (G71 roughs "
                                        "at it): G97 S.. before them")
-    if code in (70.0, 71.0, 72.0):  # the roughing and finishing cycles: a turn operation
+    if code in (71.0, 72.0):  # roughing: a turn operation
         if tr.vibration is not None:
             raise GcodeError(b.line, word, "(CNC,VIBRATION) is locked to one spindle speed: not at constant surface "
                                            "speed (G97 S.., or (CNC,VIBRATION OFF))")

@@ -1,10 +1,15 @@
-"""Move jobs: a list of rapid, linear (with a feed) and dwell moves, as G0, G1 and G4 are."""
+"""Move jobs: a list of rapid, linear (with a feed) and dwell moves, as G0, G1 and G4 are.
+
+A linear move feeds at ``feed`` (mm/min, G94) or ``feed_per_rev`` (mm/rev, G95: per
+revolution of the spindle's actual speed, which at a constant surface speed changes along
+the move)."""
 from __future__ import annotations
 
 from types import SimpleNamespace
 
 from ..schema import JobError, List, Num, Obj
 from .kind import MAX_LIST, MIN_FEED, THREAD_ONLY_VIBRATION, KindSchema
+from .turn import MIN_FEED_PER_REV
 
 AXIS_KEYS = ("x", "y", "z", "a", "b", "c")
 
@@ -13,27 +18,29 @@ MOVE = List(Obj({
     "rapid": Obj(MOVE_TARGET.fields, default=None),
     "linear": Obj(MOVE_TARGET.fields, default=None),
     "feed": Num("mm/min", gt=0.0, min=MIN_FEED, default=None),
+    "feed_per_rev": Num("mm/rev", gt=0.0, min=MIN_FEED_PER_REV, max=5.0, default=None),
     "dwell": Num("1", gt=0.0, max=3600.0, default=None),
 }), min_len=1, max_len=MAX_LIST, default=None)
 
 
 def check(job: SimpleNamespace) -> None:
-    """Each move is one of rapid, linear, dwell, and only a linear one takes a feed; a move job
-    needs no spindle unless it vibrates. At a surface speed it only positions (rapids, dwells):
-    the spindle follows the tool's radius between cuts (G96 in force around a G71)."""
+    """Each move is one of rapid, linear, dwell, and only a linear one takes a feed (per minute
+    or per revolution); a move job needs no spindle unless it vibrates or feeds per revolution."""
     for i, move in enumerate(job.move):
         given = [k for k in ("rapid", "linear", "dwell") if getattr(move, k) is not None]
         if len(given) != 1:
             raise JobError(f"move[{i}]", "needs exactly one of rapid, linear, dwell")
-        if move.linear is not None and move.feed is None:
-            raise JobError(f"move[{i}].feed", "required for a linear move")
-        if move.linear is None and move.feed is not None:
-            raise JobError(f"move[{i}].feed", "only a linear move takes a feed")
+        feeds = [k for k in ("feed", "feed_per_rev") if getattr(move, k) is not None]
+        if move.linear is not None and len(feeds) != 1:
+            raise JobError(f"move[{i}].feed", "required for a linear move (or feed_per_rev)"
+                           if not feeds else "give feed or feed_per_rev, not both")
+        if move.linear is None and feeds:
+            raise JobError(f"move[{i}].{feeds[0]}", "only a linear move takes a feed")
+        if move.feed_per_rev is not None and job.spindle_rpm <= 0.0 and job.surface_speed is None:
+            raise JobError(f"move[{i}].feed_per_rev", "a feed per revolution needs the spindle turning "
+                                                      "(spindle_rpm or surface_speed)")
         if given[0] != "dwell" and not any(v is not None for v in vars(getattr(move, given[0])).values()):
             raise JobError(f"move[{i}].{given[0]}", "names no axis")
-        if move.linear is not None and job.surface_speed is not None:
-            raise JobError(f"move[{i}].linear", "feed moves at constant surface speed are not supported yet (turn "
-                                                "jobs cut at it): give spindle_rpm")
     if job.vibration is not None and job.spindle_rpm <= 0.0:
         raise JobError("spindle_rpm", "must be > 0 when a vibration is given")
 

@@ -64,8 +64,13 @@ class SurfaceSpeed:
             abs(spindle / self.rate(r) - 1.0) <= TOLERANCE for r in radii)
 
     def pieces(self, r0: float, r1: float) -> list[tuple[float, float]]:
-        """A feed from radius r0 to r1 as pieces (share of the feed where each ends, rad/s):
-        the rpm asked for changes by at most (1 + TOLERANCE) / (1 - TOLERANCE) in each."""
+        """A feed from signed radius r0 to r1 (x, which a face cut may take past the axis) as
+        pieces (share of the feed where each ends, rad/s): the rpm asked for changes by at
+        most (1 + TOLERANCE) / (1 - TOLERANCE) in each."""
+        if r0 * r1 < 0.0:  # through the axis: down to it, then out on the other side
+            at = r0 / (r0 - r1)
+            return ([(at * share, w) for share, w in self.pieces(r0, 0.0)]
+                    + [(at + (1.0 - at) * share, w) for share, w in self.pieces(0.0, r1)])
         w0, w1 = self.rate(r0), self.rate(r1)
         step = math.log((1.0 + TOLERANCE) / (1.0 - TOLERANCE))
         n = max(1, math.ceil(abs(math.log(w1 / w0)) / step - 1e-9))
@@ -97,10 +102,10 @@ def surface_speed_of(job: SimpleNamespace, machine: Machine) -> SurfaceSpeed | N
 
 
 def radius_of(kin: Kinematics, axes: dict[str, float], at: dict[str, float]) -> float:
-    """The tool tip's radius (m) with the axes at ``axes`` (joints not named stay ``at``)."""
-    x, z = ({**at, **axes}[j] for j in ("x", "z"))
-    radius, _ = kin.tip_radius_z(np.array([x]), np.array([z]))
-    return float(radius[0])
+    """The tool tip's radius (m) with the axes at ``axes`` (joints not named stay ``at``),
+    signed as the tip's x: a face cut past the axis turns negative."""
+    tips, _ = kin.fk_many({**at, **axes})
+    return math.copysign(math.hypot(tips[0, 0], tips[0, 1]), tips[0, 0])
 
 
 def ramp_to_radius(builder: PlanBuilder, css: SurfaceSpeed, radius: float) -> None:
@@ -118,7 +123,7 @@ def css_feeds(builder: PlanBuilder, css: SurfaceSpeed, start: dict[str, float], 
     axes stand, unless the speed it has holds the surface speed over the piece)."""
     before = 0.0
     for share, speed in css.pieces(r0, r1):
-        ends = tuple(abs(r0) + s * (abs(r1) - abs(r0)) for s in (before, share))
+        ends = tuple(r0 + s * (r1 - r0) for s in (before, share))
         if not css.holds(abs(builder.timelines[SPINDLE].end_velocity), ends):
             builder.spindle_after(speed)
         yield {j: start[j] + share * (target[j] - start[j]) for j in target}

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
-from cnc_msgs_py.machine import Machine
+from cnc_msgs_py.machine import SPINDLE, Machine
 
 from cnc_planner.kinematics import Kinematics
 from cnc_planner.motion.builder import PlanBuilder
-from cnc_planner.motion.surface_speed import radius_of, ramp_to_radius, surface_speed_of
+from cnc_planner.motion.surface_speed import css_feeds, radius_of, ramp_to_radius, surface_speed_of
 from cnc_planner.travel import check_travel, program_axes, to_axes
 from cnc_planner.vibration.feed import TWO_PI, feed_move, vibration_of
 
@@ -37,10 +37,11 @@ def move_targets(job: SimpleNamespace, machine: Machine, kin: Kinematics,
 def plan_move(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin: Kinematics) -> None:
     """A list of rapid, linear and dwell moves in absolute program coordinates.
 
-    At a surface speed (G96 around a G71; the schema lets only rapids and dwells have one) the
-    spindle starts at the speed for where the tool stands and, from each rapid's start, ramps
-    to the speed for its end point, as Fanuc's G96 computes a rapid's rpm (cnc_planner.motion.
-    surface_speed)."""
+    At a surface speed (G96) the spindle starts at the speed for where the tool stands; from
+    each rapid's start it ramps to the speed for the rapid's end point, as Fanuc's G96
+    computes a rapid's rpm, and a linear move that changes radius is fed in pieces at the
+    speeds along it (cnc_planner.motion.surface_speed). A feed per revolution is per
+    revolution of the speed the spindle has."""
     here = {j: builder.position(j) for j in machine.linear_axes}
     targets = move_targets(job, machine, kin, here)
     vibration = vibration_of(job)
@@ -63,7 +64,20 @@ def plan_move(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin:
             if css is not None:
                 ramp_to_radius(builder, css, radius_of(kin, axes, {j: builder.position(j) for j in machine.linear_axes}))
             builder.rapid(axes)
+        elif css is not None:
+            here = {j: builder.position(j) for j in machine.linear_axes}
+            for piece in css_feeds(builder, css, {j: here[j] for j in axes}, axes, radius_of(kin, {}, here),
+                                   radius_of(kin, axes, here)):
+                builder.linear(piece, _feed(move, builder))
         elif vibration is None:
-            builder.linear(axes, move.feed)
+            builder.linear(axes, _feed(move, builder))
         else:
-            feed_move(builder, axes, move.feed / (job.spindle_rpm / TWO_PI), vibration, f"move[{i}]")
+            per_rev = move.feed / (job.spindle_rpm / TWO_PI) if move.feed_per_rev is None else move.feed_per_rev
+            feed_move(builder, axes, per_rev, vibration, f"move[{i}]")
+
+
+def _feed(move: SimpleNamespace, builder: PlanBuilder) -> float:
+    """A linear move's feed (m/s): per minute as given, or per revolution of the spindle's speed now."""
+    if move.feed_per_rev is None:
+        return move.feed
+    return move.feed_per_rev * abs(builder.timelines[SPINDLE].end_velocity) / TWO_PI

@@ -67,10 +67,12 @@ def test_a_surface_speed_in_feet_per_minute_is_converted_once():
     ("G21 G18 G7 G90 G94\nG96 D2000 S150 M3\nG0 X22 Z7\nF200\nG71 Q100 X20 Z5 D0.2 I1.5 R0.5\nM2\n"
      "o100 sub\nG1 X10 Z5\nG1 Z-10\no100 endsub",
      "line 5: G71: at constant surface speed the feed is per revolution (G95)"),
-    (HEAD + "G96 D2000 S150 M3\nG0 X22 Z7\nG1 X18 F0.1\nM2",
-     "line 4: G1: feed moves at constant surface speed are not supported yet"),
+    (HEAD + "G96 D2000 S150 M3\nG0 X22 Z7\n(CNC,VIBRATION D=1.5 Q=1.2)\nG1 X18 F0.1\nM2",
+     "line 5: G1: (CNC,VIBRATION) is locked to one spindle speed"),
     (HEAD + "G96 D2000 S150 M3\nG0 X22 Z7\nG70 Q100\nM2\no100 sub\nG1 X10 Z5\no100 endsub",
-     "line 4: G70: feed moves at constant surface speed are not supported yet"),
+     "line 4: G70: the finishing cycle at constant surface speed is not supported yet"),
+    (HEAD + "G96 D2000 S150 M3\nG0 X22 Z7\nG42.1 D0.8\nG1 X18 Z5 F0.1\nM2",
+     "line 5: G1: cutter compensation at constant surface speed is not supported yet"),
     (HEAD + "G96 D-5 S150 M3\nM2", "line 2: D-5: the maximum rpm must be >= 0"),
     (HEAD + "G96 D2000 M3\nM2", "line 2: G96: needs S, the surface speed"),
     (HEAD + "M3 S500\nG0 X22 Z7\nF0.15\nG96 G71 Q100 X20 Z5 D0.2 I1.5 R0.5\nM2\no100 sub\nG1 X10 Z5\no100 endsub",
@@ -78,6 +80,19 @@ def test_a_surface_speed_in_feet_per_minute_is_converted_once():
 ])
 def test_what_cannot_turn_at_a_surface_speed_is_refused_at_its_word(text, reason):
     assert _refused(text).startswith(reason)
+
+
+def test_a_face_cut_under_g96_feeds_per_revolution_of_the_changing_speed():
+    """G96 then G1 facing past the axis, in G95 and in G94: one move operation at the surface
+    speed, its feed per revolution (G95) or per minute (G94) as written; it plans."""
+    for mode, key in (("G95", "feed_per_rev"), ("G94", "feed")):
+        text = (f"G21 G18 G8 G90 {mode}\nG96 D3000 S150 M3\nG0 X21 Z0\nG1 X-0.4 F{0.1 if mode == 'G95' else 200}\n"
+                "G0 Z2\nM5\nM2\n")
+        ops = parse_job(_program(text)).program.operations
+        (_, op, doc), = ops
+        assert doc["surface_speed"] == {"m_min": 150.0, "max_rpm": 3000.0}
+        assert doc["move"][1] == {"linear": {"x": -0.4, "z": 0.0}, key: 0.1 if key == "feed_per_rev" else 200.0}
+        assert plan_job(parse_job(_program(text)), load_machine("lathe"), {"x": 0.03, "z": 0.01}).duration > 5.0
 
 
 def test_g96_on_a_mill_names_the_machine():

@@ -6,13 +6,14 @@ exceed (D0 or none: the machine's spindle limit caps). ``G97``: S is rpm again; 
 in its line the spindle turns at the last S, as LinuxCNC's does.
 
 What turns at a surface speed here: G71 roughing (our turn operation carries
-``surface_speed``, and the planner follows the radius along its passes) and the rapids
-around it (a move operation that only positions). What cannot, refused at its word with
-why: threads (G76: the lead is locked to the spindle angle), a (CNC,VIBRATION) on the
-roughing (locked to one spindle speed), drilling, and feed moves G1/G2/G3 and G70's finishing
-pass (not yet: move jobs take ``feed_per_rev`` at a surface speed, the front end does not
-write it yet). At a surface speed the feed of a G71 must be per revolution (G95): the rpm
-changes along the cut, and a feed per minute would change the chip with it.
+``surface_speed``, and the planner follows the radius along its passes), and rapids and
+G1/G2/G3 feeds (a move operation with ``surface_speed``; under G95 its feeds are
+``feed_per_rev``, per revolution of the spindle's actual, changing speed; under G94 per
+minute). What cannot, refused at its word with why: threads (G76: the lead is locked to the
+spindle angle), a (CNC,VIBRATION) cut (locked to one spindle speed), drilling, G70's
+finishing pass and cutter compensation (not yet). At a surface speed the feed of a G71 must
+be per revolution (G95): the rpm changes along the cut, and a feed per minute would change
+the chip with it.
 """
 from __future__ import annotations
 
@@ -89,16 +90,32 @@ def check_motion(tr: "Translator", b: Block, g: list[float]) -> None:
                                        "G97 S.. before it, not G96")
     if code in DRILL_CYCLES:
         raise GcodeError(b.line, word, "a drill turns at one rpm: G97 S.. before it, not G96")
-    if code in (1.0, 2.0, 3.0, 70.0):  # our move operations: the front end gives them a feed per minute
-        raise GcodeError(b.line, word, "feed moves at constant surface speed are not supported yet (G71 roughs "
-                                       "at it): G97 S.. before them")
-    if code in (71.0, 72.0):  # roughing: a turn operation
+    if code == 70.0:
+        raise GcodeError(b.line, word, "the finishing cycle at constant surface speed is not supported yet: "
+                                       "G97 S.. before it")
+    if code in (1.0, 2.0, 3.0) and tr.comp.on:
+        raise GcodeError(b.line, word, "cutter compensation at constant surface speed is not supported yet: "
+                                       "G97 S.. before it")
+    if code in (1.0, 2.0, 3.0, 71.0, 72.0):
         if tr.vibration is not None:
             raise GcodeError(b.line, word, "(CNC,VIBRATION) is locked to one spindle speed: not at constant surface "
                                            "speed (G97 S.., or (CNC,VIBRATION OFF))")
-        if not s.per_rev:
+        if not s.per_rev and code not in (1.0, 2.0, 3.0):
             raise GcodeError(b.line, word, "at constant surface speed the feed is per revolution (G95): the rpm "
                                            "changes along the cut")
+
+
+def feed(tr: "Translator", line: int, word: str) -> dict:
+    """A feed move's feed keys: ``feed`` (mm/min) as the front end writes it, or under G96 with
+    G95 ``feed_per_rev`` (mm/rev), per revolution of the spindle's actual, changing speed."""
+    s = tr.state
+    if s.surface is None or not s.per_rev:
+        return {"feed": tr._feed_mm_min(line, word)}
+    if s.feed is None:
+        raise GcodeError(line, word, "no feed given (F)")
+    if not s.spindle_on:
+        raise GcodeError(line, word, "G95 feeds per revolution need the spindle on (S, M3)")
+    return {"feed_per_rev": s.length(s.feed)}
 
 
 def spindle(s: Modal) -> dict:

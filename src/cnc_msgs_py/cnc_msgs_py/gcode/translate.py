@@ -336,10 +336,10 @@ class Translator:
             target = offsets.g53_target(self, b, used) if 53.0 in g else self._target(b, used)
             if target == before:
                 return  # no motion: the tool is there already (our cycles end where LinuxCNC's return to)
-            feed = None if s.motion == 0.0 else self._feed_mm_min(b.line, "G1")
-            if compensation.add(self, b.line, feed is None, feed, before, target):
+            feed = None if s.motion == 0.0 else surface_speed.feed(self, b.line, "G1")  # (per rev under G96)
+            if compensation.add(self, b.line, feed is None, feed and feed.get("feed"), before, target):
                 return
-            self._move(b.line, {"rapid": target} if feed is None else {"linear": target, "feed": feed})
+            self._move(b.line, {"rapid": target} if feed is None else {"linear": target, **feed})
         else:
             self._arc(b, used)
 
@@ -399,15 +399,15 @@ class Translator:
                 arcs.check_center(start, end, center)
         except ValueError as err:
             raise GcodeError(b.line, name, str(err)) from None
-        feed = self._feed_mm_min(b.line, name)
-        if compensation.add(self, b.line, False, feed, before, end_pos, center, s.motion == 2.0):
+        feed = surface_speed.feed(self, b.line, name)
+        if compensation.add(self, b.line, False, feed.get("feed"), before, end_pos, center, s.motion == 2.0):
             return
         third = next(k for k in AXES if k not in (a, c))
         for pa, pc, share in arcs.chords(start, end, center, s.motion == 2.0):
             target = {**end_pos, a: pa, c: pc}
             if third in end_pos and third in before:
                 target[third] = before[third] + share * (end_pos[third] - before[third])
-            self._move(b.line, {"linear": target, "feed": feed})
+            self._move(b.line, {"linear": target, **feed})
 
     # ---- operations
     def _common(self, kind: str) -> dict:

@@ -14,7 +14,6 @@ G40, in the XY (G17) and XZ (G18, the lathe) planes.
 from __future__ import annotations
 
 import math
-import re
 import sys
 from pathlib import Path
 
@@ -29,47 +28,11 @@ from cnc_planner.planning import plan_job
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT / "bench" / "peer")]
+import compensation_oracle  # noqa: E402  bench/peer/compensation_oracle.py
 import examples  # noqa: E402  bench/peer/examples.py
 import oracle  # noqa: E402  bench/peer/oracle.py
 
 TIP_TOLERANCE_MM = 1e-3
-CALL = re.compile(r"^\s*\d+\s+N\S*\s+([A-Z_]+)\((.*)\)")
-
-
-def _cuts(output: str) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray | None]]:
-    """rs274's feed moves and arcs (mm programs) as (kind, start, end, center), points x, y, z."""
-    plane, pos, out = "XY", np.zeros(3), []
-    for raw in output.splitlines():
-        m = CALL.match(raw)
-        if not m:
-            continue
-        name, nums = m.group(1), [float(v) for v in re.findall(r"-?\d+\.?\d*", m.group(2))]
-        if name == "SELECT_PLANE":
-            plane = "XZ" if "XZ" in m.group(2) else "XY"
-        elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED"):
-            end = np.array(nums[:3])
-            if name == "STRAIGHT_FEED":
-                out.append(("line", pos, end, None))
-            pos = end
-        elif name == "ARC_FEED":
-            a, b, ca, cb, _, third = nums[:6]
-            end, center = (np.array([a, b, third]), np.array([ca, cb, third])) if plane == "XY" else \
-                (np.array([b, third, a]), np.array([cb, third, ca]))
-            out.append(("arc", pos, end, center))
-            pos = end
-    return out
-
-
-def _distance_to_path(p: np.ndarray, cuts: list) -> float:
-    best = math.inf
-    for kind, a, b, c in cuts:
-        if kind == "arc":
-            best = min(best, abs(np.linalg.norm(p - c) - np.linalg.norm(b - c)))  # the arcs keep their third axis
-        else:
-            u = b - a
-            t = 0.0 if not u.any() else float(np.clip((p - a) @ u / (u @ u), 0.0, 1.0))
-            best = min(best, float(np.linalg.norm(p - a - t * u)))
-    return best
 
 
 @pytest.mark.parametrize("name,machine", [("mill_g41_g42.ngc", "mill3"), ("lathe_g42.ngc", "lathe")])
@@ -77,16 +40,12 @@ def test_compensated_paths_end_where_linuxcncs_do_and_plan(name, machine):
     path = ROOT / "test" / "gcode_oracle" / name
     output = oracle.recorded(examples.RS274_RECORDED)(path.read_text())
     assert oracle.canonical_moves(output)[1] is None
-    cuts = _cuts(output)
+    cuts = compensation_oracle.cuts(output)
     job = parse_job(job_document(path))
     ours = np.array([[m["linear"].get(a, 0.0) for a in "xyz"] for _, _, d in job.program.operations
                      for m in d["move"] if "linear" in m])
-    k = 0
-    for _, _, end, _ in cuts:  # LinuxCNC's ends, in order, among ours
-        while k < len(ours) and np.max(np.abs(ours[k] - end)) > TIP_TOLERANCE_MM:
-            k += 1
-        assert k < len(ours), f"LinuxCNC's feed end {end} is none of ours (in order)"
-    assert max(_distance_to_path(p, cuts) for p in ours) <= TIP_TOLERANCE_MM
+    assert compensation_oracle.TOLERANCE_MM == TIP_TOLERANCE_MM
+    assert compensation_oracle.agree(cuts, ours)  # LinuxCNC's ends among ours in order, ours on its path
     assert len(cuts) >= 9
     assert plan_job(job, load_machine(machine)).duration > 0.0
 
@@ -121,6 +80,17 @@ def test_the_offset_path_by_hand():
     # the entry's offset (parallel, through its perpendicular end) meets y = -2 at the inside corner, as LinuxCNC's
     assert ends[0] == (round(2 * math.sqrt(2.0) - 2.0, 9), -2.0) and (10.0, -2.0) in ends and ends[-2] == (12.0, 10.0)
     assert ends[ends.index((10.0, -2.0)) + 1] == (10.0, -2.0)  # the Z step, where the path stands
+    # a corner turning less than 0.05 rad is taken as tangent, as LinuxCNC's: no trim (inside), no arc
+    # (outside); a corner turning more gets its arc (rs274: (10, 1), (19.97, 1.2996), arc, (30.03, 0.9996))
+    ends = _ends(_moves("G41.1 D2 G1 X0 Y0\nG1 X10\nG1 X20 Y0.3\nG1 X30 Y0\nG40 G1 X40"))
+    k = ends.index((10.0, 1.0))
+    assert ends[k + 1] == pytest.approx((20.0 - 0.3 / math.hypot(10, 0.3), 0.3 + 10 / math.hypot(10, 0.3)), abs=1e-9)
+    assert ends[-2] == pytest.approx((30.0 + 0.3 / math.hypot(10, 0.3), 10 / math.hypot(10, 0.3)), abs=1e-9)
+    assert len(ends) > k + 4  # the arc about (20, 0.3): it turns 3.4 deg
+    ends = _ends(_moves("G41.1 D2 G1 X0 Y0\nG1 X10\nG1 X20 Y-0.3\nG1 X30 Y-0.3\nG40 G1 X40"))
+    k = ends.index((10.0, 1.0))  # turning right by 1.7 deg on the outside: straight on, no arc
+    assert ends[k + 1] == pytest.approx((20.0 + 0.3 / math.hypot(10, 0.3), -0.3 + 10 / math.hypot(10, 0.3)), abs=1e-9)
+    assert ends[k + 2] == (30.0, 0.7)
     # a tool of radius 0 (G41.1 D0) leaves the path as programmed
     assert _ends(_moves("G41.1 D0 G1 X0 Y0\nG1 X10\nG40 G1 X20")) == [(0.0, 0.0), (10.0, 0.0), (20.0, 0.0)]
 

@@ -26,6 +26,7 @@ if TYPE_CHECKING:
 
 Point2 = tuple[float, float]
 EPS = 1.0e-9
+SMALL_CORNER_RAD = 0.05  # LinuxCNC's compensation takes a corner turning less as tangent
 COMP_PLANES = (17.0, 18.0)  # LinuxCNC compensates in XY and XZ
 
 
@@ -157,12 +158,15 @@ def _entry(start: Point2, offset: Segment) -> Segment:
     return Segment(start, end, (c[0] + u * radial[0], c[1] + u * radial[1]), offset.clockwise)
 
 
-def offset_pieces(path: list[Segment], d: float, entry: bool = False) -> list[tuple[int, Segment]]:
+def offset_pieces(path: list[Segment], d: float, entry: bool = False, small_corner: float = 0.0
+                  ) -> list[tuple[int, Segment]]:
     """The path offset by ``d`` (right of travel if positive), corners joined as LinuxCNC
     joins them: arcs about outside corners, inside corners trimmed to their crossing. Each
     piece comes with the index of the segment it belongs to (a corner's arc to the segment
     after it). ``entry``: the first segment is LinuxCNC's entry move (``_entry``): its offset
-    meets the next as any other, then starts where the tool stood.
+    meets the next as any other, then starts where the tool stood. A corner turning by less
+    than ``small_corner`` (rad) is taken as tangent, as LinuxCNC's compensation takes one below
+    0.05 rad: no arc, no trim, the next offset piece starts where the last ended.
 
     Raises:
         OffsetError: an inside arc or corner the offset cannot follow, with why and where.
@@ -181,8 +185,8 @@ def offset_pieces(path: list[Segment], d: float, entry: bool = False) -> list[tu
         t1, t2 = path[k - 1].tangent(True), path[k].tangent(False)
         turn, ahead = _cross(t1, t2), t1[0] * t2[0] + t1[1] * t2[1]
         nxt, (owner, last) = moved[k], out[-1]
-        if abs(turn) < EPS and ahead > 0.0:
-            out.append((k, nxt))  # tangent: the offsets meet
+        if ahead > 0.0 and (abs(turn) < EPS or math.atan2(abs(turn), ahead) < small_corner):
+            out.append((k, nxt if abs(turn) < EPS else replace(nxt, start=last.end)))  # tangent: the offsets meet
             continue
         if abs(turn) < EPS:
             raise OffsetError(k, f"the path turns back on itself at ({corner[0]:g}, {corner[1]:g})")
@@ -190,7 +194,11 @@ def offset_pieces(path: list[Segment], d: float, entry: bool = False) -> list[tu
             out += [(k, Segment(last.end, nxt.start, corner, d < 0.0)), (k, nxt)]
             continue
         meet = _meets(last, nxt, corner)
-        if meet is None or not _kept(last, replace(last, end=meet)) or not _kept(nxt, replace(nxt, start=meet)):
+        # both moves must keep their direction (the cutter would gouge the contour otherwise); the
+        # entry may end anywhere its corner puts it, as LinuxCNC's does
+        entering = entry and owner == 0
+        if meet is None or not (entering or _kept(last, replace(last, end=meet))) or \
+                not _kept(nxt, replace(nxt, start=meet)):
             raise OffsetError(k, f"the inside corner at ({corner[0]:g}, {corner[1]:g}) is too small for the offset "
                              f"{abs(d):g} mm (the cutter would gouge it)")
         out[-1] = (owner, replace(last, end=meet))
@@ -324,7 +332,7 @@ def finish(tr: "Translator") -> None:
     path = [Segment((moves[k].start[a], moves[k].start[c]), (moves[k].end[a], moves[k].end[c]),
                     moves[k].center, moves[k].clockwise) for k in planar]
     try:
-        pieces = offset_pieces(path, st.offset, entry=True)
+        pieces = offset_pieces(path, st.offset, entry=True, small_corner=SMALL_CORNER_RAD)
     except OffsetError as err:
         raise GcodeError(moves[planar[err.index]].line, "G41/G42", str(err)) from None
     at = dict(first.start)

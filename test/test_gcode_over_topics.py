@@ -82,6 +82,7 @@ def test_a_lathe_program_roughs_at_constant_surface_speed_then_threads_at_one_rp
     assert css["max_deviation_pct"] <= 2.0 and css["max_rpm"] <= 3000.0
     assert css["held_s"] > 5.0 and css["capped_s"] > 1.0  # most of the cut held, the small radii capped
     assert 118.0 <= css["min_m_min"] and css["max_m_min"] <= 122.0
+    assert css["feed_per_rev_mm"][1] == pytest.approx(0.15, rel=0.01)  # per revolution of the actual speed
     assert turn["max_gouge_part_mm"] == 0.0 and thread["full_depth"]
     run = read_run(tmp_path / "run" / "bag")
     starts = sorted(e["stamp_ns"] / 1e9 for e in run.events if e.get("name") == "operation")

@@ -47,7 +47,8 @@ def judge_surface_speed(t: np.ndarray, radius: np.ndarray, tip_speed: np.ndarray
         requested: the surface speed asked for (m/s); cap: the rpm it may not exceed (rad/s);
         feed_per_rev: the job's feed per revolution (m).
 
-    Returns the figures (m/min, rpm, %) and ``failures``, one phrase per miss.
+    Returns the figures (m/min, rpm, %; ``feed_per_rev_mm`` the 1st, 50th and 99th percentile
+    of the measured feed per revolution while cutting) and ``failures``, one phrase per miss.
     """
     w = np.abs(spindle)
     feed = feed_per_rev * w / (2.0 * math.pi)
@@ -65,6 +66,9 @@ def judge_surface_speed(t: np.ndarray, radius: np.ndarray, tip_speed: np.ndarray
         "capped_s": round(float(dt[cutting & capped].sum()), 3),
         "max_rpm": round(to_rpm(float(w.max())) if len(w) else 0.0, 1),
     }
+    if cutting.any():  # the feed per revolution of the measured speed, as the tip measured it
+        per_rev = tip_speed[cutting] / (w[cutting] / (2.0 * math.pi))
+        out["feed_per_rev_mm"] = [round(to_mm(float(q)), 4) for q in np.percentile(per_rev, (1, 50, 99))]
     failures = []
     if held.any():
         off = surface[held] / requested - 1.0

@@ -5,10 +5,11 @@ Where the speed changes, and why there:
 
 - **Air moves.** Before the rapids that lead to a cut the spindle starts ramping to the
   speed the cut begins at, while the axes travel; the cut waits until it is reached (as it
-  waits for any spindle change). Fanuc's and LinuxCNC's G96 do the same in effect: a rapid's
-  rpm is computed for its end point (Fanuc's rule, so that the spindle does not hunt up and
-  down during a traverse), and a retract to a larger radius slows the spindle. A pass along
-  Z at one radius, most of a roughing cycle, then cuts at one exact rpm.
+  waits for any spindle change). This is Fanuc's rule for G96: a rapid's rpm is computed for
+  its end point, so that the spindle does not hunt up and down during a traverse and is at
+  speed when the cut begins (LinuxCNC follows X during rapids too, which a retract and
+  re-approach costs two ramps). A pass along Z at one radius, most of a roughing cycle, then
+  cuts at one exact rpm.
 - **Feeds that change radius** (a face, a chamfer, a taper, the contour pass). A real control
   re-computes the rpm from X every servo cycle during the feed. Our feed moves are ruckig
   profiles at one path speed from rest to rest, and their feed per revolution must hold at

@@ -42,8 +42,7 @@ def test_compensated_paths_end_where_linuxcncs_do_and_plan(name, machine):
     assert oracle.canonical_moves(output)[1] is None
     cuts = compensation_oracle.cuts(output)
     job = parse_job(job_document(path))
-    ours = np.array([[m["linear"].get(a, 0.0) for a in "xyz"] for _, _, d in job.program.operations
-                     for m in d["move"] if "linear" in m])
+    ours = compensation_oracle.feed_ends([m for _, _, d in job.program.operations for m in d["move"]])
     assert compensation_oracle.TOLERANCE_MM == TIP_TOLERANCE_MM
     assert compensation_oracle.agree(cuts, ours)  # LinuxCNC's ends among ours in order, ours on its path
     assert len(cuts) >= 9

@@ -24,10 +24,14 @@ import numpy as np
 
 CALL = re.compile(r"^\s*\d+\s+N\S*\s+([A-Z_]+)\((.*)\)")
 TOLERANCE_MM = 1e-3
+# a chord's midpoint lies up to the chord tolerance (1 um) inside its arc, and rs274 prints the
+# arc's center and ends rounded to 0.1 um
+MIDPOINT_TOLERANCE_MM = 1.5e-3
 
 
-def cuts(output: str) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray | None]]:
-    """rs274's feed moves and arcs (mm programs) as (kind, start, end, center), points x, y, z."""
+def cuts(output: str) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray | None, int]]:
+    """rs274's feed moves and arcs (mm programs) as (kind, start, end, center, the index of the
+    axis normal to the arc's plane), points x, y, z."""
     plane, pos, out = "XY", np.zeros(3), []
     for raw in output.splitlines():
         m = CALL.match(raw)
@@ -39,23 +43,27 @@ def cuts(output: str) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray | No
         elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED"):
             end = np.array(nums[:3])
             if name == "STRAIGHT_FEED":
-                out.append(("line", pos, end, None))
+                out.append(("line", pos, end, None, 2))
             pos = end
         elif name == "ARC_FEED":
             a, b, ca, cb, _, third = nums[:6]
             end, center = (np.array([a, b, third]), np.array([ca, cb, third])) if plane == "XY" else \
                 (np.array([b, third, a]), np.array([cb, third, ca]))
-            out.append(("arc", pos, end, center))
+            out.append(("arc", pos, end, center, 2 if plane == "XY" else 1))
             pos = end
     return out
 
 
 def distance_to_path(p: np.ndarray, path: list) -> float:
-    """The distance (mm) from a point to LinuxCNC's feed path (its arcs keep their third axis)."""
+    """The distance (mm) from a point to LinuxCNC's feed path: to a line, or to an arc's circle
+    in its plane with the point's third axis between the arc's ends (a helix)."""
     best = math.inf
-    for kind, a, b, c in path:
+    for kind, a, b, c, normal in path:
         if kind == "arc":
-            best = min(best, abs(np.linalg.norm(p - c) - np.linalg.norm(b - c)))
+            plane = [i for i in range(3) if i != normal]
+            lo, hi = sorted((a[normal], b[normal]))
+            if lo - TOLERANCE_MM <= p[normal] <= hi + TOLERANCE_MM:
+                best = min(best, abs(np.linalg.norm((p - c)[plane]) - np.linalg.norm((b - c)[plane])))
         else:
             u = b - a
             t = 0.0 if not u.any() else float(np.clip((p - a) @ u / (u @ u), 0.0, 1.0))
@@ -63,15 +71,28 @@ def distance_to_path(p: np.ndarray, path: list) -> float:
     return best
 
 
+def feed_ends(moves: list[dict]) -> np.ndarray:
+    """Our move entries' feed ends (x, y, z; an axis not given 0), a row of NaN for a rapid
+    between them (so that no feed is taken to run from a rapid's end)."""
+    rows = [[m["linear"].get(a, 0.0) for a in "xyz"] if "linear" in m else [math.nan] * 3
+            for m in moves if "linear" in m or "rapid" in m]
+    return np.array(rows, dtype=float).reshape(-1, 3)
+
+
 def agree(path: list, ours: np.ndarray) -> bool:
-    """LinuxCNC's ends among ours in order, and ours on LinuxCNC's path, within TOLERANCE_MM."""
+    """LinuxCNC's ends among ours in order, and ours on LinuxCNC's path: every end within
+    TOLERANCE_MM and every midpoint of two feed ends in a row within MIDPOINT_TOLERANCE_MM (a
+    chord of an arc lies within the chord tolerance of it, a straight cut across an arc does not)."""
+    ends = ours[~np.isnan(ours[:, 0])]
     k = 0
-    for _, _, end, _ in path:
-        while k < len(ours) and np.max(np.abs(ours[k] - end)) > TOLERANCE_MM:
+    for _, _, end, _, _ in path:
+        while k < len(ends) and np.max(np.abs(ends[k] - end)) > TOLERANCE_MM:
             k += 1
-        if k == len(ours):
+        if k == len(ends):
             return False
-    return max(distance_to_path(p, path) for p in ours) <= TOLERANCE_MM
+    mids = (ours[1:] + ours[:-1]) / 2.0
+    return max(distance_to_path(p, path) for p in ends) <= TOLERANCE_MM and \
+        max(distance_to_path(p, path) for p in mids[~np.isnan(mids[:, 0])]) <= MIDPOINT_TOLERANCE_MM
 
 
 def contour(rng: random.Random) -> str:
@@ -104,8 +125,7 @@ def main(seed: int = 1, n: int = 240) -> int:
                        if ln.strip() and not ln.lstrip()[:1].isdigit() and not ln.startswith("executing")), None)
         try:
             ops = translate(text, Context("c", "mill3"))
-            ours, refused = np.array([[m["linear"][a] for a in "xyz"] for op in ops for m in op.doc["move"]
-                                      if "linear" in m]), None
+            ours, refused = feed_ends([m for op in ops for m in op.doc["move"]]), None
         except GcodeError as err:
             ours, refused = None, str(err)
         if theirs and refused:

@@ -320,7 +320,8 @@ def finish(tr: "Translator") -> None:
     st = tr.comp
     a, c = st.plane
     moves, st.plane, st.moves = st.moves, None, []
-    planar = [k for k, mv in enumerate(moves) if (mv.start[a], mv.start[c]) != (mv.end[a], mv.end[c])]
+    planar = [k for k, mv in enumerate(moves)
+              if mv.center is not None or (mv.start[a], mv.start[c]) != (mv.end[a], mv.end[c])]  # a full circle too
     if not planar:
         for mv in moves:
             tr._move(mv.line, {"rapid": mv.end} if mv.rapid else {"linear": mv.end, "feed": mv.feed}, mv.key, mv.common)

@@ -414,8 +414,6 @@ class Translator:
         s = self.state
         tool = dict(self.tool_entry(s.tool))
         tool.pop("length", None)
-        if kind == "move" and tool.get("diameter") == 0.0:
-            del tool["diameter"]  # a lathe tool (D0): a move plans no cutter, and its schema takes none or > 0
         if self.applied_length():
             tool["length"] = self.applied_length()
         doc = {"schema": "cnc_job/1", "job_id": "", "kind": kind, "machine": self.ctx.machine,
@@ -452,6 +450,9 @@ class Translator:
 
     def _move(self, line: int, entry: dict, key: tuple | None = None, common: dict | None = None) -> None:
         self._begin(line, "move", self._key() if key is None else key, [], common).append(entry)
+        tool = self.current.doc["tool"]
+        if tool.get("diameter") == 0.0:
+            del tool["diameter"]  # a lathe tool (D0): a move plans no cutter, and its schema takes none or > 0
 
     def _need_spindle(self, line: int, word: str) -> None:
         if not (self.state.spindle_on and self.state.speed > 0.0):

@@ -4,8 +4,8 @@ compensation (cnc_msgs_py.gcode.compensation), and G72's refusal.
 - test/gcode_oracle/lathe_g70.ngc (two passes, a chamfer, an inside shoulder, an outside
   round, an inside fillet): every feed and arc end rs274 -g makes of it (recorded by
   bench/peer/examples.py in bench/results/rs274_examples.json) is one of our feed moves'
-  ends, in order, within 1 um; every one of ours lies on LinuxCNC's path (its arcs within
-  the 1 um chord tolerance); the operation plans on the lathe.
+  ends, in order, within 1 um; every one of ours lies on LinuxCNC's path (compensation_oracle.agree:
+  ends within 1 um, chord middles within 1.5 um); the operation plans on the lathe.
 - The offset geometry against hand-computed corners.
 """
 from __future__ import annotations
@@ -14,7 +14,6 @@ import math
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from cnc_msgs_py.gcode import Context, GcodeError, translate
@@ -26,6 +25,7 @@ from cnc_planner.planning import plan_job
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT / "bench" / "peer")]
+import compensation_oracle  # noqa: E402  bench/peer/compensation_oracle.py
 import examples  # noqa: E402  bench/peer/examples.py
 import oracle  # noqa: E402  bench/peer/oracle.py
 
@@ -33,37 +33,15 @@ TIP_TOLERANCE_MM = 1e-3
 LATHE = "G18 G21 G8 G90 G94\nM3 S1000\nF100\nG0 X12 Z3\n"
 
 
-def _on_path(point: np.ndarray, moves: list) -> float:
-    """The distance (mm) from an (x, z) point to LinuxCNC's feed path (lines and XZ arcs)."""
-    best = math.inf
-    for mv in moves:
-        a, b = np.array([mv.start[0], mv.start[2]]), np.array([mv.end[0], mv.end[2]])
-        if mv.kind == "arc":
-            c = np.array([mv.center[1], mv.center[0]])
-            best = min(best, abs(np.hypot(*(point - c)) - np.hypot(*(b - c))))
-        else:
-            u = b - a
-            t = 0.0 if not u.any() else float(np.clip((point - a) @ u / (u @ u), 0.0, 1.0))
-            best = min(best, float(np.hypot(*(point - a - t * u))))
-    return best
-
-
 def test_g70_ends_every_feed_move_where_linuxcnc_does_and_plans():
     path = ROOT / "test" / "gcode_oracle" / "lathe_g70.ngc"
-    moves, error = oracle.canonical_moves(oracle.recorded(examples.RS274_RECORDED)(path.read_text()))
-    assert error is None, error
-    cuts = [m for m in moves if m.kind in ("feed", "arc")]
-    theirs = np.array([[m.end[0], m.end[2]] for m in cuts])
+    output = oracle.recorded(examples.RS274_RECORDED)(path.read_text())
+    assert oracle.canonical_moves(output)[1] is None
+    cuts = compensation_oracle.cuts(output)
     job = parse_job(job_document(path))
-    ours = np.array([[m["linear"]["x"], m["linear"]["z"]] for _, _, d in job.program.operations
-                     for m in d["move"] if "linear" in m])
-    assert len(theirs) == 20 and len(ours) > len(theirs)
-    k = 0
-    for end in theirs:  # LinuxCNC's ends, in order, among ours
-        while k < len(ours) and np.max(np.abs(ours[k] - end)) > TIP_TOLERANCE_MM:
-            k += 1
-        assert k < len(ours), f"LinuxCNC's feed end {end} is none of ours (in order)"
-    assert max(_on_path(p, cuts) for p in ours) <= TIP_TOLERANCE_MM
+    ours = compensation_oracle.feed_ends([m for _, _, d in job.program.operations for m in d["move"]])
+    assert len(cuts) == 20 and len(ours) > len(cuts)
+    assert compensation_oracle.agree(cuts, ours)  # LinuxCNC's ends among ours in order, ours on its path
     assert plan_job(job, load_machine("lathe")).duration > 0.0
 
 

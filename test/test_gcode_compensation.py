@@ -17,7 +17,6 @@ import math
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from cnc_msgs_py.gcode import Context, GcodeError, translate

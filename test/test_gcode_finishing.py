@@ -92,3 +92,15 @@ def test_g70_and_g72_refusals(text, reason):
     with pytest.raises(GcodeError) as err:
         translate(LATHE + text, Context("t", "lathe"))
     assert str(err.value).startswith(reason), str(err.value)
+
+
+def test_g70_p_q_after_a_g71_p_q_finishes_that_contour_as_the_sub_form_does():
+    contour = "G1 X10 Z5\nG1 X12 Z-1\nG1 Z-16\nG2 X16 Z-18 R2\nG1 Z-25\n"
+    head = "G21 G18 G7 G90 G94\nM3 S1500\nG0 X22 Z7\nF225\n"
+    blocks = "N10 G1 X10 Z5\nG1 X12 Z-1\nG1 Z-16\nG2 X16 Z-18 R2\nN20 G1 Z-25\n"
+    numbered = head + "G71 P10 Q20 X20 Z5 D0.2 I1.5 R0.5\n" + blocks + "G70 P10 Q20 X22 Z7\nG0 X30\nM2"
+    sub = head + "o100 sub\n" + contour + "o100 endsub\nG71 Q100 X20 Z5 D0.2 I1.5 R0.5\nG70 Q100 X22 Z7\nG0 X30\nM2"
+    finish = [[op.doc for op in translate(text, Context("t", "lathe")) if op.doc["kind"] == "move"][-1]["move"]
+              for text in (numbered, sub)]
+    assert finish[0] == finish[1] and sum("linear" in m for m in finish[0]) > 4
+    assert finish[0][1]["linear"] == {"x": 6.0, "z": -1.0}  # the contour itself (one pass, D0): the chamfer's end

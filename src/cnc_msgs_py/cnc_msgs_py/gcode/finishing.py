@@ -1,7 +1,8 @@
 """G70, LinuxCNC 2.9's finishing cycle, into a move operation: the contour of the ``o<Q> sub``
 followed at feed, as rs274 -g makes it.
 
-``G70 Q<sub> X Z D E P``: a rapid to the start (X, Z; else where the tool stands); then P
+``G70 Q<sub> X Z D E P`` (or, after a ``G71 P<N> Q<N>``, ``G70 P<N> Q<N>`` with the same
+N numbers: that contour, one pass, as Fanuc-style programs finish): a rapid to the start (X, Z; else where the tool stands); then P
 passes (default 1), pass k offset from the contour by E + (D - E)(P - k)/P (so the last
 pass runs on the contour, offset E), each one reached by a rapid to its first point and left
 by a rapid back to the start, but the last, which ends on the contour's end. The offset is
@@ -60,7 +61,9 @@ def g70(tr: "Translator", b: Block, used: set[str]) -> None:
     used.update(k for k in "XZ" if k in b.words)
     start = s.length(_word(b, used, "D", "G70", 0.0))
     end = s.length(_word(b, used, "E", "G70", 0.0))
-    p_word = _word(b, used, "P", "G70", 1.0)
+    blocks = tr.contours.get((int(b.words.get("P", -1)), int(q)))  # G70 P<N> Q<N> after a G71 P Q: one pass
+    p_word = 1.0 if blocks is not None else _word(b, used, "P", "G70", 1.0)
+    used.update("P" if blocks is not None else "")
     try:
         passes = whole(p_word, word_text("P", p_word))
     except ValueError:
@@ -70,7 +73,9 @@ def g70(tr: "Translator", b: Block, used: set[str]) -> None:
     if start < 0.0 or end < 0.0:
         raise GcodeError(b.line, "G70", "D and E are distances from the contour (>= 0)")
     feed = tr._feed_mm_min(b.line, "G70")
-    profile = _profile(tr, tr.executor.expand(str(int(q)), b.line), (sz, sx), b.line, "G70")
+    if blocks is None:
+        blocks = tr.executor.expand(str(int(q)), b.line)
+    profile = _profile(tr, blocks, (sz, sx), b.line, "G70")
     contour = contour_segments(profile)
     if not contour:
         raise GcodeError(b.line, "G70", "the contour has no move after its first point")

@@ -132,6 +132,7 @@ def g71(tr: "Translator", b: Block, used: set[str]) -> None:
     if "P" in b.words:
         used.add("P")
         blocks = _numbered_blocks(tr, b, int(b.words["P"]), int(q))
+        tr.contours[(int(b.words["P"]), int(q))] = blocks
     else:
         blocks = tr.executor.expand(str(int(q)), b.line)
     sx = s.length(b.words["X"]) / (2.0 if s.diameter else 1.0) if "X" in b.words else x0

@@ -86,6 +86,7 @@ class Translator:
         self.tools = {n: dict(entry) for n, entry in ctx.tool_table.items()}  # G10 L1/L10 edit this copy
         self.offsets = offsets.Offsets(ctx.setup, ctx.work_offsets)  # G10 L2/L20, G92, G52 edit these
         self.comp = compensation.State()  # G41/G42: the moves wait for their offset until G40
+        self.contours: dict[tuple[int, int], list[Block]] = {}  # G71 P Q's N blocks, for a G70 P Q after it
 
     # ---- the program
     def run(self, text: str) -> list[Operation]:

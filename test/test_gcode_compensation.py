@@ -89,6 +89,10 @@ def test_the_offset_path_by_hand():
     k = ends.index((10.0, 1.0))  # turning right by 1.7 deg on the outside: straight on, no arc
     assert ends[k + 1] == pytest.approx((20.0 + 0.3 / math.hypot(10, 0.3), -0.3 + 10 / math.hypot(10, 0.3)), abs=1e-9)
     assert ends[k + 2] == (30.0, 0.7)
+    # a dwell waits in its place, at the inside corner's point
+    moves = _moves("G41.1 D2 G1 X0 Y0\nG1 X10\nG4 P1\nG1 Y10\nG40 G1 X20")
+    k = moves.index({"dwell": 1.0})
+    assert moves[k - 1]["linear"] == {"x": 9.0, "y": 1.0, "z": -1.0} and moves[k + 1]["linear"]["y"] == 10.0
     # a tool of radius 0 (G41.1 D0) leaves the path as programmed
     assert _ends(_moves("G41.1 D0 G1 X0 Y0\nG1 X10\nG40 G1 X20")) == [(0.0, 0.0), (10.0, 0.0), (20.0, 0.0)]
 

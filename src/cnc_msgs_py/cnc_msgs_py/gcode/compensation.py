@@ -217,7 +217,8 @@ def offset_path(path: list[Segment], d: float) -> list[Segment]:
 @dataclass
 class Move:
     """A G0/G1/G2/G3 programmed while compensation is on (program coordinates, mm), with
-    the operation it belongs to as it stood then (its key and its job document's header)."""
+    the operation it belongs to as it stood then (its key and its job document's header); or
+    a dwell (``other``), kept in its place among them."""
 
     line: int
     rapid: bool
@@ -228,6 +229,7 @@ class Move:
     common: dict
     center: Point2 | None = None
     clockwise: bool = False
+    other: dict | None = None
 
 
 @dataclass
@@ -324,7 +326,7 @@ def finish(tr: "Translator") -> None:
               if mv.center is not None or (mv.start[a], mv.start[c]) != (mv.end[a], mv.end[c])]  # a full circle too
     if not planar:
         for mv in moves:
-            tr._move(mv.line, {"rapid": mv.end} if mv.rapid else {"linear": mv.end, "feed": mv.feed}, mv.key, mv.common)
+            _emit(tr, mv, mv.end)
         return
     first = moves[planar[0]]
     radius = abs(st.offset)
@@ -356,6 +358,16 @@ def finish(tr: "Translator") -> None:
                 _emit(tr, mv, at)
 
 
+def hold(tr: "Translator", line: int, entry: dict) -> bool:
+    """A dwell while compensation is on, kept in its place among the moves (True), or False."""
+    if not tr.comp.on:
+        return False
+    here = dict(tr.state.position)
+    tr.comp.moves.append(Move(line, False, None, here, here, tr._key(), tr._common("move"), other=entry))
+    return True
+
+
 def _emit(tr: "Translator", mv: Move, target: dict) -> None:
-    entry = {"rapid": dict(target)} if mv.rapid else {"linear": dict(target), "feed": mv.feed}
+    entry = mv.other if mv.other is not None else \
+        {"rapid": dict(target)} if mv.rapid else {"linear": dict(target), "feed": mv.feed}
     tr._move(mv.line, entry, mv.key, mv.common)

@@ -297,7 +297,7 @@ class Translator:
         if "P" not in b.words or b.words["P"] < 0.0:
             raise GcodeError(b.line, "G4", "needs P, the dwell in seconds (>= 0)")
         used.add("P")
-        if b.words["P"] > 0.0:
+        if b.words["P"] > 0.0 and not compensation.hold(self, b.line, {"dwell": b.words["P"]}):
             self._move(b.line, {"dwell": b.words["P"]})
 
     # ---- motion

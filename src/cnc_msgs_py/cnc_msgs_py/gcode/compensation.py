@@ -282,7 +282,8 @@ def check_line(tr: "Translator", b: Block, g: list[float], m: list[float]) -> No
     if not tr.comp.on:
         return
     refused = [(m, (6.0, 61.0), "M", "change tools"), (g, (53.0,), "G", "use G53"),
-               (g, (10.0, 52.0, 92.0, 92.1, 92.2, 92.3), "G", "change axis offsets"),
+               (g, (10.0,), "G", "set offsets or tool data (G10)"),
+               (g, (52.0, 92.0, 92.1, 92.2, 92.3), "G", "change axis offsets"),
                (g, (54.0, 55.0, 56.0, 57.0, 58.0, 59.0, 59.1, 59.2, 59.3), "G", "change coordinate systems"),
                (g, (70.0, 71.0, 72.0, 73.0, 76.0, 81.0, 82.0, 83.0), "G", "use canned cycles")]
     for codes, which, letter, what in refused:
@@ -318,7 +319,7 @@ def finish(tr: "Translator") -> None:
     """Offset the moves programmed since compensation came on and emit them: LinuxCNC's entry
     (the first move in the plane ends offset perpendicular to it, from where the tool
     stood), corners joined by offset_pieces, moves out of the plane (Z alone) where the
-    path stands. Compensation stays on only in ``tr.comp``'s caller's hands."""
+    path stands. Compensation is off afterwards."""
     st = tr.comp
     a, c = st.plane
     moves, st.plane, st.moves = st.moves, None, []

@@ -6,8 +6,7 @@ N numbers: that contour, one pass, as Fanuc-style programs finish): a rapid to t
 passes (default 1), pass k offset from the contour by E + (D - E)(P - k)/P (so the last
 pass runs on the contour, offset E), each one reached by a rapid to its first point and left
 by a rapid back to the start, but the last, which ends on the contour's end. The offset is
-to the right of travel in the Z-X plane (away from the material of a contour cut right to
-left on the outside), corners joined as ``compensation.offset_path`` joins them: arcs about
+to the side of the contour the start point lies on (``_side``: out of the material), corners joined as ``compensation.offset_path`` joins them: arcs about
 outside corners, inside corners trimmed. The contour's first move is the approach, as in
 LinuxCNC: the path starts at its end.
 
@@ -45,6 +44,14 @@ def contour_segments(profile: list) -> list[Segment]:
     return out
 
 
+def _side(first: Segment, start: tuple[float, float]) -> float:
+    """+1 (right of travel) or -1: the side of the contour's first move the cycle's start
+    point lies on, which LinuxCNC's G70 offsets towards (out of the material, whichever way
+    the contour runs: outside or bore, right to left or left to right, or a face)."""
+    t = first.tangent(False)
+    return 1.0 if (start[0] - first.start[0]) * t[1] - (start[1] - first.start[1]) * t[0] >= 0.0 else -1.0
+
+
 def g70(tr: "Translator", b: Block, used: set[str]) -> None:
     """G70 Q X Z D E P: the finishing passes as feed moves of a move operation."""
     s = tr.state
@@ -79,6 +86,7 @@ def g70(tr: "Translator", b: Block, used: set[str]) -> None:
     contour = contour_segments(profile)
     if not contour:
         raise GcodeError(b.line, "G70", "the contour has no move after its first point")
+    side = _side(contour[0], (sz, sx))
 
     def go(z: float, x: float, feed_move: bool) -> None:
         s.position["z"], s.position["x"] = z, x
@@ -88,7 +96,7 @@ def g70(tr: "Translator", b: Block, used: set[str]) -> None:
     if (sz, sx) != (s.position.get("z"), s.position.get("x")):
         go(sz, sx, False)
     for k in range(1, passes + 1):
-        distance = end + (start - end) * (passes - k) / passes
+        distance = side * (end + (start - end) * (passes - k) / passes)
         try:
             path = offset_path(contour, distance)
         except ValueError as err:

@@ -222,7 +222,7 @@ class Move:
 
     line: int
     rapid: bool
-    feed: float | None
+    feed: dict | None  # {"feed": mm/min} or {"feed_per_rev": mm/rev} (G95 at a surface speed)
     start: dict[str, float]
     end: dict[str, float]
     key: tuple
@@ -296,7 +296,7 @@ def check_line(tr: "Translator", b: Block, g: list[float], m: list[float]) -> No
                                                                   "compensation on (G40 first)")
 
 
-def add(tr: "Translator", line: int, rapid: bool, feed: float | None, start: dict, end: dict,
+def add(tr: "Translator", line: int, rapid: bool, feed: dict | None, start: dict, end: dict,
         center: Point2 | None = None, clockwise: bool = False) -> bool:
     """A move while compensation is on, kept to be offset (True), or the move just after G40
     checked (False: the caller moves as usual)."""
@@ -370,5 +370,5 @@ def hold(tr: "Translator", line: int, entry: dict) -> bool:
 
 def _emit(tr: "Translator", mv: Move, target: dict) -> None:
     entry = mv.other if mv.other is not None else \
-        {"rapid": dict(target)} if mv.rapid else {"linear": dict(target), "feed": mv.feed}
+        {"rapid": dict(target)} if mv.rapid else {"linear": dict(target), **(mv.feed or {})}
     tr._move(mv.line, entry, mv.key, mv.common)

@@ -338,7 +338,7 @@ class Translator:
             if target == before:
                 return  # no motion: the tool is there already (our cycles end where LinuxCNC's return to)
             feed = None if s.motion == 0.0 else surface_speed.feed(self, b.line, "G1")  # (per rev under G96)
-            if compensation.add(self, b.line, feed is None, feed and feed.get("feed"), before, target):
+            if compensation.add(self, b.line, feed is None, feed, before, target):
                 return
             self._move(b.line, {"rapid": target} if feed is None else {"linear": target, **feed})
         else:
@@ -401,7 +401,7 @@ class Translator:
         except ValueError as err:
             raise GcodeError(b.line, name, str(err)) from None
         feed = surface_speed.feed(self, b.line, name)
-        if compensation.add(self, b.line, False, feed.get("feed"), before, end_pos, center, s.motion == 2.0):
+        if compensation.add(self, b.line, False, feed, before, end_pos, center, s.motion == 2.0):
             return
         third = next(k for k in AXES if k not in (a, c))
         for pa, pc, share in arcs.chords(start, end, center, s.motion == 2.0):

@@ -91,3 +91,21 @@ def test_a_lathe_program_roughs_at_constant_surface_speed_then_threads_at_one_rp
     assert np.ptp(rpm[during(1)]) > 1000.0  # the roughing's spindle follows the radius
     in_thread = during(3) & (run.feedback[:, run.column("x")] < 6e-3)  # the tip below the major radius
     assert in_thread.sum() > 1000 and np.allclose(rpm[in_thread], 600.0, rtol=1e-3)  # one rpm while it cuts
+
+
+def test_a_face_cut_at_constant_surface_speed_is_judged_on_feedback(tmp_path):
+    """G96 D3000 S150 then G1 facing from a radius of 21 mm to 0.4 mm past the axis at 0.1 mm
+    per revolution: a move operation at the surface speed, its own surface_speed section on
+    the recorded feedback: within 2 % of 150 m/min down to where 3000 rpm caps it, never above
+    3000 rpm, 0.1 mm per revolution of the measured speed."""
+    from support import cnc, load_report
+    program = tmp_path / "face_g96.ngc"
+    program.write_text("G21 G18 G8 G90 G95\nG96 D3000 S150 M3\nG0 X21 Z0\nG1 X-0.4 F0.1\nG0 Z2\nM5\nM2\n")
+    result = cnc("cnc-run", program, "--machine", "lathe", "--out", tmp_path / "run")
+    assert result.returncode == 0, result.stderr[-2000:]
+    (op,) = load_report(tmp_path / "run")["program"]["operations"]
+    css = op["surface_speed"]
+    assert op["kind"] == "move" and css["verdict"]["passed"], css["verdict"]
+    assert css["max_deviation_pct"] <= 2.0 and css["max_rpm"] <= 3000.0
+    assert css["held_s"] > 4.0 and css["capped_s"] > 1.0
+    assert css["feed_per_rev_mm"][1] == pytest.approx(0.1, rel=0.01)

@@ -148,7 +148,7 @@ def test_a_face_cut_past_the_axis_follows_the_radius_down_to_the_cap():
     p, v, _ = plan.sample(t)
     x, z, s = (plan.joints.index(j) for j in ("x", "z", "spindle"))
     figures = judge_surface_speed(t, p[:, x], np.hypot(v[:, x], v[:, z]), v[:, s], job.surface_speed.m_min,
-                                  job.surface_speed.max_rpm, 0.1e-3)
+                                  job.surface_speed.max_rpm, (0.1e-3,))
     assert figures["failures"] == [] and figures["max_deviation_pct"] <= 1.0 + 1e-6
     assert figures["held_s"] > 4.0 and figures["capped_s"] > 1.5 and figures["max_rpm"] <= 2970.0 + 1e-6
 
@@ -179,7 +179,7 @@ def test_the_planned_spindle_holds_the_surface_speed_along_x():
     x, z, s = (plan.joints.index(j) for j in ("x", "z", "spindle"))
     radius, _ = Kinematics(machine, job.setup, job.tool).tip_radius_z(p[:, x], p[:, z])
     figures = judge_surface_speed(t, radius, np.hypot(v[:, x], v[:, z]), v[:, s], job.surface_speed.m_min,
-                                  job.surface_speed.max_rpm, job.turn.feed)
+                                  job.surface_speed.max_rpm, (job.turn.feed,))
     assert figures["failures"] == [] and figures["max_deviation_pct"] <= 1.0 + 1e-6
     assert figures["held_s"] > 30.0 and figures["capped_s"] > 1.0 and figures["max_rpm"] <= 3000.0
     assert figures["min_m_min"] < 149.0  # a taper's pieces: not one rpm per cut
@@ -193,15 +193,17 @@ def test_the_judge_fails_one_rpm_along_x_and_a_spindle_above_its_cap():
     radius = np.linspace(0.020, 0.010, len(t))
     w = np.full_like(t, 2.5 / 0.020)  # 150 m/min at 20 mm
     feed = 0.15e-3 * w / (2.0 * math.pi)
-    one_rpm = judge_surface_speed(t, radius, feed, w, 2.5, 1000.0, 0.15e-3)
+    one_rpm = judge_surface_speed(t, radius, feed, w, 2.5, 1000.0, (0.15e-3,))
     assert one_rpm["max_deviation_pct"] == pytest.approx(50.0, abs=0.1)
     assert one_rpm["failures"][0].startswith("surface speed -50.00 % off 150 m/min at radius 10.000 mm")
     held = 2.5 / radius
-    above = judge_surface_speed(t, radius, 0.15e-3 * held / (2.0 * math.pi), held, 2.5, held.max() / 1.01, 0.15e-3)
+    above = judge_surface_speed(t, radius, 0.15e-3 * held / (2.0 * math.pi), held, 2.5, held.max() / 1.01, (0.15e-3,))
     assert any(f.startswith("spindle at 2387.3 rpm, above the cap of 2363.7 rpm") for f in above["failures"])
-    rapid = judge_surface_speed(t, radius, np.full_like(t, 0.2), held, 2.5, 1000.0, 0.15e-3)
+    rapid = judge_surface_speed(t, radius, np.full_like(t, 0.2), held, 2.5, 1000.0, (0.15e-3,))
     assert rapid["cutting_s"] == 0.0 and rapid["failures"] == [
-        "no cut found at the feed per revolution of the measured spindle speed"]
+        "no cut found at the job's feeds (per revolution of the measured spindle speed)"]
+    per_minute = judge_surface_speed(t, radius, np.full_like(t, 0.2), held, 2.5, 1000.0, feeds=(0.2,))
+    assert per_minute["held_s"] > 1.9 and per_minute["failures"] == [] and "feed_per_rev_mm" not in per_minute
 
 
 def test_the_report_page_shows_the_surface_speed_apart_from_the_gouge():
@@ -234,5 +236,5 @@ def test_every_corner_of_the_drives_tolerance_holds_the_surface_speed_and_the_ca
         p, v = DriveModel(machine, 1e-3, drives={**machine.drives, "spindle": spindle, "x": dx, "z": dz}).simulate(*command)
         radius, _ = kin.tip_radius_z(p[:, x], p[:, z])
         figures = judge_surface_speed(t, radius, np.hypot(v[:, x], v[:, z]), v[:, s], job.surface_speed.m_min,
-                                      job.surface_speed.max_rpm, job.turn.feed)
+                                      job.surface_speed.max_rpm, (job.turn.feed,))
         assert figures["failures"] == [] and figures["max_rpm"] < 3000.0 and figures["held_s"] > 40.0, spindle

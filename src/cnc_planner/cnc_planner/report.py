@@ -87,8 +87,8 @@ def build_report(run: Run, machine: Machine | None = None) -> dict:
     # The section's baselines are planned on the other core while the run is judged.
     beside(section, job, machine, {j: float(run.feedback[window][0, run.column(j)]) for j in run.joints})
     report["drives"] = drives_section(run, machine)
-    if section is not None:
-        report[section.key] = section.judge(run, job, machine, window)
+    if section is not None and (judged := section.judge(run, job, machine, window)) is not None:
+        report[section.key] = judged  # (None: nothing of the kind's to judge, as a move job at one rpm)
     if job.vibration is not None and not (section is not None and section.judges_chips):
         report["aircut"] = aircut_section(run)
     drop_pending()

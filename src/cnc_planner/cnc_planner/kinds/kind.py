@@ -72,9 +72,9 @@ Table = tuple[str, list[str], list[list]]  # a table on the report page: heading
 @dataclass(frozen=True)
 class ReportSection:
     """The kind's section of report.json: ``judge`` reads the recorded feedback in the job's
-    window and returns the section under ``key``; ``cards`` and ``tables`` put it on the
-    report page. Each is given as a "module:function" reference (``judge_at``, ``cards_at``,
-    ``tables_at``) and imported when first called for."""
+    window and returns the section under ``key`` (or None: nothing to judge, no section);
+    ``cards`` and ``tables`` put it on the report page. Each is given as a "module:function"
+    reference (``judge_at``, ``cards_at``, ``tables_at``) and imported when first called for."""
 
     key: str
     judge_at: str
@@ -87,7 +87,7 @@ class ReportSection:
     baselines_at: tuple[str, ...] = ()
 
     @property
-    def judge(self) -> Callable[[Run, Job, Machine, np.ndarray], dict]:
+    def judge(self) -> Callable[[Run, Job, Machine, np.ndarray], dict | None]:
         return resolve(self.judge_at)
 
     @property

@@ -7,7 +7,7 @@ from types import SimpleNamespace
 from cnc_msgs_py.machine import Machine
 
 from .planning import move_targets, plan_move
-from cnc_planner.kinds.kind import JobKind, Segmenting
+from cnc_planner.kinds.kind import JobKind, ReportSection, Segmenting
 from cnc_planner.kinematics import Kinematics
 
 
@@ -27,6 +27,8 @@ def _check_whole(job: SimpleNamespace, machine: Machine, kin: Kinematics, start:
 KIND = JobKind(
     name="move",
     plan=plan_move,
+    report=ReportSection("surface_speed", f"{__name__}.report:surface_speed_section",
+                         cards_at=f"{__name__}.page:surface_speed_cards"),
     segmenting=Segmenting(size=SEGMENT_MOVES, index="move", count=lambda job: len(job.move), part=_part,
                           check_whole=_check_whole),
 )

@@ -45,7 +45,9 @@ def program_section(run: Run, job: SimpleNamespace, machine: Machine, window: np
             section = registry[op.kind].report
             if section is not None and part.any():
                 own = _operation_run(run, part, starts[index], t1, doc)
-                entry[section.key] = section.judge(own, op, machine, np.ones(len(own.feedback_t), dtype=bool))
+                judged = section.judge(own, op, machine, np.ones(len(own.feedback_t), dtype=bool))
+                if judged is not None:  # (None: nothing of the kind's to judge, as a move at one rpm)
+                    entry[section.key] = judged
         sections.append(entry)
     failures = [f"operation {e['index']} (line {e['line']}, {e['kind']}): {s['verdict']['says']}"
                 for e in sections for s in e.values()

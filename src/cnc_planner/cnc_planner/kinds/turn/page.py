@@ -2,11 +2,11 @@
 at a constant surface speed, how well the feedback held it."""
 from __future__ import annotations
 
-from cnc_analysis.surface_speed import CAP_MARGIN, TOLERANCE
 from cnc_analysis.verdict import OVERCUT_LIMIT
 from cnc_msgs_py.units import to_mm
 
 from cnc_planner.kinds.kind import Card
+from cnc_planner.kinds.move.page import surface_speed_cards
 from cnc_planner.page_format import mm
 
 
@@ -25,17 +25,5 @@ def cards(turn: dict) -> list[Card]:
             ("Air moves", f"{turn.get('air_feed_mm', 0):.1f} mm",
              f"air cut at feed, vs {turn.get('naive_air_feed_mm', 0):.1f} mm for passes started at the "
              f"virtual cylinder; path {turn.get('path_mm', 0):.0f} mm vs {turn.get('naive_path_mm', 0):.0f} mm "
-             f"in {turn.get('passes', '?')} passes", "info")] + _surface_speed(turn.get("surface_speed"))
+             f"in {turn.get('passes', '?')} passes", "info")] + surface_speed_cards(turn.get("surface_speed"))
 
-
-def _surface_speed(css: dict | None) -> list[Card]:
-    """The surface speed held while cutting, on feedback (cnc_analysis.surface_speed)."""
-    if css is None:
-        return []
-    off = css.get("max_deviation_pct")
-    held = (off is None or off <= 100.0 * TOLERANCE) and css["cutting_s"] > 0.0
-    within_cap = css["max_rpm"] <= css["cap_rpm"] * (1.0 + CAP_MARGIN)
-    return [("Surface speed", "no cut found" if not css["cutting_s"] else
-             f"{off:.2f} % off" if off is not None else "all at the cap",
-             f"{css['requested_m_min']:g} m/min over {css['held_s']:.1f} s of cutting, {css['capped_s']:.1f} s at "
-             f"the {css['cap_rpm']:g} rpm cap; at most {css['max_rpm']:g} rpm", "ok" if held and within_cap else "bad")]

@@ -12,7 +12,7 @@ from cnc_msgs_py.units import to_mm
 
 from cnc_analysis import summary
 from cnc_analysis.recording import Run
-from cnc_analysis.surface_speed import TOLERANCE, judge_surface_speed
+from cnc_analysis.surface_speed import CRITERION, surface_speed_on
 from cnc_analysis.verdict import OVERCUT_LIMIT, verdict
 
 from cnc_planner.kinds.turn.judge import max_gouge
@@ -41,9 +41,10 @@ def turn_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.nd
     passed = f"the tip stayed out of the final profile ({to_mm(gouge):.4f} mm into it) on feedback"
     css = {}
     if job.surface_speed is not None:
-        css = {"surface_speed": _surface_speed(run, job, machine, window, tip_zx[:, 1])}
+        css = {"surface_speed": surface_speed_on(run, window, tip_zx[:, 1], job.surface_speed,
+                                                 machine.axes[SPINDLE].max_velocity, (t.feed,))}
         failures += css["surface_speed"].pop("failures")
-        criterion += f"; the surface speed within {100 * TOLERANCE:g} % while cutting, the rpm never above the cap"
+        criterion += "; " + CRITERION.removeprefix("on feedback: ")
         passed += f"; surface speed at most {css['surface_speed'].get('max_deviation_pct', 0.0):g} % off"
     return {
         **ours.to_dict(),
@@ -61,14 +62,3 @@ def turn_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.nd
         "verdict": verdict(criterion, failures, passed),
     }
 
-
-def _surface_speed(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray, radius: np.ndarray) -> dict:
-    """The surface speed on this section's feedback (cnc_analysis.surface_speed), capped by the
-    job's max_rpm and the spindle's limit from the machine description."""
-    css = job.surface_speed
-    cap = machine.axes[SPINDLE].max_velocity if css.max_rpm is None else min(css.max_rpm,
-                                                                              machine.axes[SPINDLE].max_velocity)
-    velocity = run.feedback_velocity[window]
-    tip_speed = np.hypot(velocity[:, run.column("x")], velocity[:, run.column("z")])
-    return judge_surface_speed(run.feedback_t[window], radius, tip_speed, velocity[:, run.column(SPINDLE)],
-                               css.m_min, cap, job.turn.feed)

@@ -71,8 +71,6 @@ def test_a_surface_speed_in_feet_per_minute_is_converted_once():
      "line 5: G1: (CNC,VIBRATION) is locked to one spindle speed"),
     (HEAD + "G96 D2000 S150 M3\nG0 X22 Z7\nG70 Q100\nM2\no100 sub\nG1 X10 Z5\no100 endsub",
      "line 4: G70: the finishing cycle at constant surface speed is not supported yet"),
-    (HEAD + "G96 D2000 S150 M3\nG0 X22 Z7\nG42.1 D0.8\nG1 X18 Z5 F0.1\nM2",
-     "line 5: G1: cutter compensation at constant surface speed is not supported yet"),
     (HEAD + "G96 D-5 S150 M3\nM2", "line 2: D-5: the maximum rpm must be >= 0"),
     (HEAD + "G96 D2000 M3\nM2", "line 2: G96: needs S, the surface speed"),
     (HEAD + "M3 S500\nG0 X22 Z7\nF0.15\nG96 G71 Q100 X20 Z5 D0.2 I1.5 R0.5\nM2\no100 sub\nG1 X10 Z5\no100 endsub",
@@ -93,6 +91,19 @@ def test_a_face_cut_under_g96_feeds_per_revolution_of_the_changing_speed():
         assert doc["surface_speed"] == {"m_min": 150.0, "max_rpm": 3000.0}
         assert doc["move"][1] == {"linear": {"x": -0.4, "z": 0.0}, key: 0.1 if key == "feed_per_rev" else 200.0}
         assert plan_job(parse_job(_program(text)), load_machine("lathe"), {"x": 0.03, "z": 0.01}).duration > 5.0
+
+
+def test_a_nose_radius_compensated_contour_turns_at_the_surface_speed():
+    """G42.1 under G96: the compensated moves keep their feed per revolution (G95) and the
+    operation its surface speed; it plans."""
+    text = (HEAD + "G96 D3000 S150 M3\nG0 X26 Z5\nG42.1 D0.8\nG1 X20 Z2 F0.1\nG1 Z-10\nG1 X30\nG40\nG0 X40 Z5\n"
+            "M5\nM2\n")
+    job = parse_job(_program(text))
+    (_, op, doc), = job.program.operations
+    assert doc["surface_speed"] == {"m_min": 150.0, "max_rpm": 3000.0}
+    feeds = [m for m in doc["move"] if "linear" in m]
+    assert len(feeds) >= 3 and all(m.get("feed_per_rev") == 0.1 and "feed" not in m for m in feeds)
+    assert plan_job(job, load_machine("lathe"), {"x": 0.03, "z": 0.01}).duration > 1.0
 
 
 def test_g96_on_a_mill_names_the_machine():

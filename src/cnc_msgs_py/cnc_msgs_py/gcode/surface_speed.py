@@ -7,11 +7,11 @@ in its line the spindle turns at the last S, as LinuxCNC's does.
 
 What turns at a surface speed here: G71 roughing (our turn operation carries
 ``surface_speed``, and the planner follows the radius along its passes), and rapids and
-G1/G2/G3 feeds (a move operation with ``surface_speed``; under G95 its feeds are
-``feed_per_rev``, per revolution of the spindle's actual, changing speed; under G94 per
-minute). What cannot, refused at its word with why: threads (G76: the lead is locked to the
-spindle angle), a (CNC,VIBRATION) cut (locked to one spindle speed), drilling, G70's
-finishing pass and cutter compensation (not yet). At a surface speed the feed of a G71 must
+G1/G2/G3 feeds, compensated or not (a move operation with ``surface_speed``; under G95 its
+feeds are ``feed_per_rev``, per revolution of the spindle's actual, changing speed; under
+G94 per minute). What cannot, refused at its word with why: threads (G76: the lead is locked
+to the spindle angle), a (CNC,VIBRATION) cut (locked to one spindle speed), drilling and
+G70's finishing pass (not yet). At a surface speed the feed of a G71 must
 be per revolution (G95): the rpm changes along the cut, and a feed per minute would change
 the chip with it.
 """
@@ -92,9 +92,6 @@ def check_motion(tr: "Translator", b: Block, g: list[float]) -> None:
         raise GcodeError(b.line, word, "a drill turns at one rpm: G97 S.. before it, not G96")
     if code == 70.0:
         raise GcodeError(b.line, word, "the finishing cycle at constant surface speed is not supported yet: "
-                                       "G97 S.. before it")
-    if code in (1.0, 2.0, 3.0) and tr.comp.on:
-        raise GcodeError(b.line, word, "cutter compensation at constant surface speed is not supported yet: "
                                        "G97 S.. before it")
     if code in (1.0, 2.0, 3.0, 71.0, 72.0):
         if tr.vibration is not None:

@@ -24,6 +24,7 @@ from cnc_analysis.cdr_arrays import joint_states, trajectory_chunks
 from cnc_analysis.mcap_scan import last_part, scan
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+STAMPED = 12  # bytes of a stamped message up to the end of its header's stamp (CDR encapsulation, sec, nanosec)
 
 # Topic (relative to the run's namespace, or absolute) -> message type.
 RECORDED = {
@@ -101,19 +102,29 @@ def read_run(bag: Path) -> Run:
     try:
         found = scan(bag, skip={"clock"})
         bulk = {name: found.of_topic(name) for name in ("joint_states", "joint_trajectory")}  # read as arrays
-        for k in np.setdiff1d(np.arange(len(found.channel)), np.concatenate(list(bulk.values()))).tolist():
+        rest = np.ones(len(found.channel), bool)
+        for indices in bulk.values():
+            rest[indices] = False
+        statuses: dict[bytes, tuple[list[str], str | None]] = {}  # a diagnostics message's alarms and plant by its bytes
+        for k in np.flatnonzero(rest).tolist():
             topic, msgtype = found.channels[int(found.channel[k])]
-            msg = TYPESTORE.deserialize_cdr(found.messages[k], msgtype)
-            topic = last_part(topic)
+            topic, raw = last_part(topic), found.messages[k]
+            if topic == "diagnostics":  # the same few reports over and over, but for their stamp
+                if (body := raw[STAMPED:]) not in statuses:
+                    msg = TYPESTORE.deserialize_cdr(raw, msgtype)
+                    statuses[body] = ([s.message for s in msg.status if s.level >= 2],
+                                      next((v.value for s in msg.status for v in s.values if v.key == PLANT_KEY), None))
+                alarms, plant = statuses[body]
+                run.alarms += alarms
+                run.plant = run.plant if plant is None else plant
+                continue
+            msg = TYPESTORE.deserialize_cdr(raw, msgtype)
             if topic == "job_goal":
                 run.goals.append(msg.data)
             elif topic == "job_status":
                 run.statuses.append(json.loads(msg.data))
             elif topic == "job_events":
                 run.events.append(json.loads(msg.data))
-            elif topic == "diagnostics":
-                run.alarms += [s.message for s in msg.status if s.level >= 2]
-                run.plant = next((v.value for s in msg.status for v in s.values if v.key == PLANT_KEY), run.plant)
         types = {name: found.channels[int(found.channel[k[0]])][1] for name, k in bulk.items() if len(k)}
         feedback = joint_states(found.messages.take(bulk["joint_states"]),
                                 lambda raw: TYPESTORE.deserialize_cdr(raw, types["joint_states"]))

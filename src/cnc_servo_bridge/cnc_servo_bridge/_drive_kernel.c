@@ -125,6 +125,67 @@ static void run(Py_ssize_t rows, Py_ssize_t joints, const double *restrict p_ref
     }
 }
 
+/* run_fixed for columns that read shared references: column j's reference rows are
+ * `width` values apart from p[j] (its source joint's column, its delay earlier); pc[j] is
+ * the same column as commanded (no delay), against which the following error is taken. */
+static inline __attribute__((always_inline)) void run_shared_fixed(
+    const Py_ssize_t joints, Py_ssize_t rows, Py_ssize_t stride, Py_ssize_t plane, Py_ssize_t width,
+    const double *const *p, const double *const *v, const double *const *a, const double *const *pc,
+    double *restrict position, double *restrict velocity, double *restrict measured, const Drive *drives,
+    double period, double *restrict out)
+{
+    double pos[MAX_IN_REGISTERS], vel[MAX_IN_REGISTERS], meas[MAX_IN_REGISTERS];
+#pragma GCC unroll 8
+    for (Py_ssize_t j = 0; j < joints; j++)
+        pos[j] = position[j], vel[j] = velocity[j], meas[j] = measured[j];
+    for (Py_ssize_t r = 0; r < rows; r++) {
+        const Py_ssize_t k = r * stride, at = r * width;
+#pragma GCC unroll 8
+        for (Py_ssize_t j = 0; j < joints; j++) {
+            const double before = meas[j];
+            out[k + j] = before;
+            out[plane + k + j] = vel[j];
+            step(&drives[j], period, p[j][at], v[j][at], a[j][at], &pos[j], &vel[j], &meas[j]);
+            out[2 * plane + k + j] = pc[j][at] - before;
+        }
+    }
+#pragma GCC unroll 8
+    for (Py_ssize_t j = 0; j < joints; j++)
+        position[j] = pos[j], velocity[j] = vel[j], measured[j] = meas[j];
+}
+
+/* run, the references given once per source joint (`width` of them per row, after `depth`
+ * rows still in transit from before): column j reads source[j]'s, delay[j] rows earlier. */
+static void run_shared(Py_ssize_t rows, Py_ssize_t joints, Py_ssize_t width, Py_ssize_t depth,
+                       const double *p_src, const double *v_src, const double *a_src, const Py_ssize_t *source,
+                       const Py_ssize_t *delay, double *restrict position, double *restrict velocity,
+                       double *restrict measured, const Drive *drives, double period, double *restrict out)
+{
+    const Py_ssize_t plane = rows * joints;
+    for (Py_ssize_t r = 0; r < rows; r += TILE_ROWS) {
+        const Py_ssize_t tile = rows - r < TILE_ROWS ? rows - r : TILE_ROWS;
+        for (Py_ssize_t g = 0; g < joints; g += MAX_IN_REGISTERS) {
+            const Py_ssize_t n = joints - g < MAX_IN_REGISTERS ? joints - g : MAX_IN_REGISTERS;
+            const double *p[MAX_IN_REGISTERS], *v[MAX_IN_REGISTERS], *a[MAX_IN_REGISTERS], *pc[MAX_IN_REGISTERS];
+            for (Py_ssize_t j = 0; j < n; j++) {
+                const Py_ssize_t at = (r + depth - delay[g + j]) * width + source[g + j];
+                p[j] = p_src + at, v[j] = v_src + at, a[j] = a_src + at;
+                pc[j] = p_src + (r + depth) * width + source[g + j];
+            }
+            double *pos = position + g, *vel = velocity + g, *meas = measured + g, *o = out + r * joints + g;
+            const Drive *d = drives + g;
+            switch (n) {
+            case 1: run_shared_fixed(1, tile, joints, plane, width, p, v, a, pc, pos, vel, meas, d, period, o); break;
+            case 2: run_shared_fixed(2, tile, joints, plane, width, p, v, a, pc, pos, vel, meas, d, period, o); break;
+            case 3: run_shared_fixed(3, tile, joints, plane, width, p, v, a, pc, pos, vel, meas, d, period, o); break;
+            case 4: run_shared_fixed(4, tile, joints, plane, width, p, v, a, pc, pos, vel, meas, d, period, o); break;
+            case 5: run_shared_fixed(5, tile, joints, plane, width, p, v, a, pc, pos, vel, meas, d, period, o); break;
+            default: run_shared_fixed(6, tile, joints, plane, width, p, v, a, pc, pos, vel, meas, d, period, o); break;
+            }
+        }
+    }
+}
+
 enum { P_REF, V_REF, A_REF, POSITION, VELOCITY, MEASURED, KP, VELOCITY_FF, ACCEL_GAIN, DECAY,
        V_LIMIT, DV_LIMIT, RESOLUTION, OUT, ARRAYS };
 
@@ -322,12 +383,94 @@ static PyObject *run_plant_py(PyObject *self, PyObject *args)
     Py_RETURN_NONE;
 }
 
+/* An index array argument: C-contiguous int64. */
+static int take_index(PyObject *obj, Py_buffer *view, const char *name)
+{
+    if (PyObject_GetBuffer(obj, view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0)
+        return -1;
+    if (view->itemsize != sizeof(Py_ssize_t) || view->format == NULL || strchr("qln", view->format[0]) == NULL) {
+        PyErr_Format(PyExc_TypeError, "%s: expected an int64 array", name);
+        PyBuffer_Release(view);
+        return -1;
+    }
+    return 0;
+}
+
+static PyObject *run_shared_py(PyObject *self, PyObject *args)
+{
+    PyObject *obj[ARRAYS], *index_obj[2];
+    Py_buffer view[ARRAYS], index[2];
+    Py_ssize_t depth;
+    double period;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OOOnOOOOOOOOOOOOdO:run_shared", &obj[P_REF], &obj[V_REF], &obj[A_REF], &depth,
+                          &index_obj[0], &index_obj[1], &obj[POSITION], &obj[VELOCITY], &obj[MEASURED], &obj[KP],
+                          &obj[VELOCITY_FF], &obj[ACCEL_GAIN], &obj[DECAY], &obj[V_LIMIT], &obj[DV_LIMIT],
+                          &obj[RESOLUTION], &period, &obj[OUT]))
+        return NULL;
+    int taken = take_all(obj, view, ARRAYS, 1UL << POSITION | 1UL << VELOCITY | 1UL << MEASURED | 1UL << OUT, NAMES);
+    int indexed = 0;
+    while (taken == ARRAYS && indexed < 2 && take_index(index_obj[indexed], &index[indexed],
+                                                        indexed ? "delay" : "source") == 0)
+        indexed++;
+    int ok = taken == ARRAYS && indexed == 2 && depth >= 0;
+    Py_ssize_t joints = ok ? values(&view[KP]) : 0, rows = 0, width = 0;
+    const Py_ssize_t *source = ok ? index[0].buf : NULL, *delay = ok ? index[1].buf : NULL;
+    if (ok) {  /* out fixes the rows, the sources their width; every column within them */
+        rows = joints ? values(&view[OUT]) / (3 * joints) : 0;
+        width = rows + depth ? values(&view[P_REF]) / (rows + depth) : 0;
+        ok = joints > 0 && values(&view[OUT]) == 3 * rows * joints && width > 0
+             && index[0].len == joints * (Py_ssize_t)sizeof(Py_ssize_t) && index[1].len == index[0].len;
+        for (int x = P_REF; ok && x <= A_REF; x++)
+            ok = values(&view[x]) == (rows + depth) * width;
+        for (int x = POSITION; ok && x < OUT; x++)
+            ok = values(&view[x]) == joints;
+        for (Py_ssize_t j = 0; ok && j < joints; j++)
+            ok = source[j] >= 0 && source[j] < width && delay[j] >= 0 && delay[j] <= depth;
+        if (!ok)
+            PyErr_SetString(PyExc_ValueError, "run_shared: sizes, sources or delays do not agree");
+    }
+    if (ok) {
+        const double *d[ARRAYS];
+        for (int x = 0; x < ARRAYS; x++)
+            d[x] = (const double *)view[x].buf;
+        Drive *drives = PyMem_Malloc((size_t)joints * sizeof(Drive));
+        ok = drives != NULL;
+        if (!ok)
+            PyErr_NoMemory();
+        for (Py_ssize_t j = 0; ok && j < joints; j++)
+            drives[j] = (Drive){d[KP][j], d[VELOCITY_FF][j], d[ACCEL_GAIN][j], d[DECAY][j], d[V_LIMIT][j],
+                                d[DV_LIMIT][j], d[RESOLUTION][j]};
+        if (ok) {
+            Py_BEGIN_ALLOW_THREADS
+            run_shared(rows, joints, width, depth, d[P_REF], d[V_REF], d[A_REF], source, delay,
+                       (double *)view[POSITION].buf, (double *)view[VELOCITY].buf, (double *)view[MEASURED].buf,
+                       drives, period, (double *)view[OUT].buf);
+            Py_END_ALLOW_THREADS
+        }
+        PyMem_Free(drives);
+    }
+    for (int x = 0; x < indexed; x++)
+        PyBuffer_Release(&index[x]);
+    for (int x = 0; x < taken; x++)
+        PyBuffer_Release(&view[x]);
+    if (!ok)
+        return NULL;
+    Py_RETURN_NONE;
+}
+
 static PyMethodDef METHODS[] = {
     {"run", run_py, METH_VARARGS,
      "run(p_ref, v_ref, a_ref, position, velocity, measured, kp, velocity_ff, accel_gain, decay,\n"
      "    v_limit, dv_limit, resolution, period, out): DriveModel.step over every row of the\n"
      "references (float64, C order, rows x joints), in place on the state arrays; out (3 x rows\n"
      "x joints) receives the measured position, velocity and following error before each step."},
+    {"run_shared", run_shared_py, METH_VARARGS,
+     "run_shared(p_src, v_src, a_src, depth, source, delay, position, velocity, measured, kp, velocity_ff,\n"
+     "    accel_gain, decay, v_limit, dv_limit, resolution, period, out): run on references given once\n"
+     "    per source ((depth + rows) x sources, the first depth rows still in transit): column j reads\n"
+     "    source[j]'s, delay[j] rows earlier (int64 arrays); the error is against the reference as\n"
+     "    commanded."},
     {"run_plant", run_plant_py, METH_VARARGS,
      "run_plant(p_ref, v_ref, a_ref, noise, position, velocity, load, measured, kp, velocity_ff, accel_gain,\n"
      "    decay, v_limit, dv_limit, resolution, friction, backlash, period, out): run with a plant's\n"

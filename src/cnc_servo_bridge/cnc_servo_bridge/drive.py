@@ -40,6 +40,7 @@ from cnc_msgs_py.machine import Drive, Machine
 
 from ._drive_kernel import run as _run
 from ._drive_kernel import run_plant as _run_plant
+from ._drive_kernel import run_shared as _run_shared
 
 VELOCITY_HEADROOM = 1.2
 ACCELERATION_HEADROOM = 1.5
@@ -204,6 +205,32 @@ class DriveModel:
             s.load = s.position.copy()
         if self.history is not None:  # the error against the reference as commanded
             out[2] = p_ref - out[0]
+        return out[0], out[1], out[2]
+
+    def run_shared(self, p_ref: np.ndarray, v_ref: np.ndarray, a_ref: np.ndarray,
+                   source: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``run`` with column j taking column ``source[j]`` of the references given (rows x
+        sources): a joint's tolerance corners share its reference, which the kernel reads in
+        place, each column its delay later, instead of a copy per column and one more per
+        delay (most of the planner's lag search once its kernel ran on normal numbers). The
+        same values as ``run`` on the references copied to every column."""
+        source = np.ascontiguousarray(source, dtype=np.int64)
+        refs = tuple(np.ascontiguousarray(x, dtype=float).reshape(len(x), -1) for x in (p_ref, v_ref, a_ref))
+        if self.lossy:
+            return self.run(*(x[:, source] for x in refs))
+        depth = int(self.delay_steps.max(initial=0))
+        if depth:  # the references in transit, one column per source (every column of a source has its own)
+            first = [int(np.flatnonzero(source == k)[0]) for k in range(refs[0].shape[1])]
+            refs = tuple(np.concatenate((past[:, first], x)) for past, x in zip(self.history, refs))
+        s = self.state
+        s.position, s.velocity, s.measured = (np.array(x, dtype=float) for x in (s.position, s.velocity, s.measured))
+        out = np.empty((3, len(refs[0]) - depth, len(self.joints)))
+        _run_shared(*refs, depth, source, self.delay_steps.astype(np.int64), s.position, s.velocity, s.measured,
+                    self.kp, self.velocity_ff, self.accel_ff * self.lag, self.decay, self.v_limit, self.dv_limit,
+                    self.resolution, self.period, out)
+        s.load = s.position.copy()
+        if depth:
+            self.history = tuple(x[-depth:][:, source] for x in refs)  # type: ignore[assignment]
         return out[0], out[1], out[2]
 
     def simulate(

@@ -273,3 +273,42 @@ def test_simulate_starts_at_rest_at_the_first_reference():
     assert positions[0, 0] == pytest.approx(0.01, abs=RES)
     assert velocities[0, 0] == 0.0
     assert np.all(np.diff(positions[:, 0]) >= 0)
+
+
+@pytest.mark.parametrize("delays_ms", [(0.0, 0.0, 0.0), (0.0, 1.0, 2.0)])
+def test_shared_references_give_what_references_copied_to_every_column_give(delays_ms):
+    """run_shared reads each column's joint reference in place, its delay later: over blocks
+    (references in transit between them) it gives, bit for bit, run's positions, velocities
+    and following errors on the references copied to every column."""
+    rng = np.random.default_rng(3)
+    drives = [dataclasses.replace(MILL.drives["x"], kp=float(rng.uniform(20, 120)), delay=d * 1e-3,
+                                  velocity_lag=float(rng.uniform(5e-4, 5e-3))) for d in delays_ms]
+    columns = [(j, d) for d in drives for j in ("x", "y")]
+    source = np.tile(np.arange(2), len(drives))
+    n = 2500
+    p = np.cumsum(rng.normal(0, 1e-4, (n, 2)), axis=0)
+    v, a = rng.normal(0, 0.05, (n, 2)), rng.normal(0, 3, (n, 2))
+    copied, shared = DriveModel.columns(MILL, T, columns), DriveModel.columns(MILL, T, columns)
+    for model in (copied, shared):
+        model.reset(p[0][source])
+    for lo in range(0, n, 700):
+        block = [x[lo:lo + 700] for x in (p, v, a)]
+        for one, other in zip(copied.run(*(x[:, source] for x in block)), shared.run_shared(*block, source)):
+            assert np.array_equal(one, other)
+    assert np.array_equal(copied.state.position, shared.state.position)
+
+
+def test_a_velocity_below_the_smallest_normal_double_is_zero():
+    """A velocity decaying at rest would stick at the smallest subnormal (0.61 of it rounds
+    back up to it); the model makes it zero, the compiled kernel as the step model does."""
+    model = x_drive()
+    model.reset(np.zeros(1))
+    model.state.velocity = np.array([5e-300])
+    for _ in range(2000):
+        model.step(np.zeros(1), np.zeros(1), np.zeros(1))
+    assert model.state.velocity[0] == 0.0
+    fast = x_drive()
+    fast.reset(np.zeros(1))
+    fast.state.velocity = np.array([5e-300])
+    _, velocity, _ = fast.run(np.zeros((2000, 1)), np.zeros((2000, 1)), np.zeros((2000, 1)))
+    assert velocity[-1, 0] == 0.0 and np.all((velocity == 0.0) | (np.abs(velocity) >= np.finfo(float).tiny))

@@ -161,7 +161,7 @@ class Bottoms:
                                     math.ceil(exit_move.duration / period) + math.ceil(BOTTOM_STEADY_S / period), 0.0)
             drives = DriveModel.columns(self.machine, period, [("z", d) for d in corners])
             drives.reset(np.full(len(corners), p[0]))
-            feedback = drives.run(*(np.repeat(x[:, None], len(corners), axis=1) for x in (p, v, a)))[0]
+            feedback = drives.run_shared(p[:, None], v[:, None], a[:, None], np.zeros(len(corners), np.int64))[0]
             deepest = min(deepest, float(np.min(feedback[k0:])))
         if bottom - deepest > LEFT_MATERIAL_LIMIT:
             z = self.machine.drives["z"].tolerance

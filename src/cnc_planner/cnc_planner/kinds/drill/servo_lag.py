@@ -43,18 +43,19 @@ def _feedback(machine: Machine, plan: Plan, ts: np.ndarray, period: float, joint
               drives: list[Drive]) -> np.ndarray:
     """Feedback (len(ts), plants, len(joints)) of each drive (one for every joint listed), in
     an order of its own, from rest at the plan's position at ts[0], all in one model (a column
-    per joint and drive, those of one delay side by side); the plan sampled LAG_BLOCK_S at a
-    time (the same values as in one piece), so that a block's references, copied to every
-    drive's columns, stay in the cache (30 s blocks copied more than they simulated)."""
+    per joint and drive, those of one delay side by side, each reading its joint's reference:
+    DriveModel.run_shared); the plan sampled LAG_BLOCK_S at a time (the same values as in one
+    piece), so that a block stays in the cache (30 s blocks copied more than they simulated)."""
     drives = sorted(drives, key=lambda d: d.delay)
     model = DriveModel.columns(machine, period, [(j, d) for d in drives for j in joints])
+    source = np.tile(np.arange(len(joints)), len(drives))
     out = np.empty((len(ts), len(drives) * len(joints)))
     block = max(2, int(LAG_BLOCK_S / period))
     for lo in range(0, len(ts), block):
-        p, v, a = (np.tile(x, len(drives)) for x in plan.sample(ts[lo:lo + block], joints))
+        p, v, a = plan.sample(ts[lo:lo + block], joints)
         if lo == 0:
-            model.reset(p[0])
-        out[lo:lo + block] = model.run(p, v, a)[0]
+            model.reset(p[0][source])
+        out[lo:lo + block] = model.run_shared(p, v, a, source)[0]
     return out.reshape(len(ts), len(drives), len(joints))
 
 

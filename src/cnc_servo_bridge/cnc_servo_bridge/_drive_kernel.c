@@ -236,6 +236,23 @@ static int take_all(PyObject *const *obj, Py_buffer *view, int count, unsigned l
     return taken;
 }
 
+/* The arrays' buffers into d, and the drives' parameters from them (PyMem: the caller
+ * frees it); NULL with MemoryError set. */
+static Drive *drives_of(const Py_buffer *view, const double **d, Py_ssize_t joints)
+{
+    for (int a = 0; a < ARRAYS; a++)
+        d[a] = (const double *)view[a].buf;
+    Drive *drives = PyMem_Malloc((size_t)joints * sizeof(Drive));
+    if (drives == NULL) {
+        PyErr_NoMemory();
+        return NULL;
+    }
+    for (Py_ssize_t j = 0; j < joints; j++)
+        drives[j] = (Drive){d[KP][j], d[VELOCITY_FF][j], d[ACCEL_GAIN][j], d[DECAY][j], d[V_LIMIT][j],
+                            d[DV_LIMIT][j], d[RESOLUTION][j]};
+    return drives;
+}
+
 static PyObject *run_py(PyObject *self, PyObject *args)
 {
     PyObject *obj[ARRAYS];
@@ -252,15 +269,8 @@ static PyObject *run_py(PyObject *self, PyObject *args)
     int ok = taken == ARRAYS && check_sizes(view, NAMES, POSITION, OUT, &rows, &joints) == 0;
     if (ok) {
         const double *d[ARRAYS];
-        for (int a = 0; a < ARRAYS; a++)
-            d[a] = (const double *)view[a].buf;
-        Drive *drives = PyMem_Malloc((size_t)joints * sizeof(Drive));
+        Drive *drives = drives_of(view, d, joints);
         ok = drives != NULL;
-        if (!ok)
-            PyErr_NoMemory();
-        for (Py_ssize_t j = 0; ok && j < joints; j++)
-            drives[j] = (Drive){d[KP][j], d[VELOCITY_FF][j], d[ACCEL_GAIN][j], d[DECAY][j], d[V_LIMIT][j],
-                                d[DV_LIMIT][j], d[RESOLUTION][j]};
         if (ok) {
             Py_BEGIN_ALLOW_THREADS
             run(rows, joints, d[P_REF], d[V_REF], d[A_REF], (double *)view[POSITION].buf,
@@ -432,15 +442,8 @@ static PyObject *run_shared_py(PyObject *self, PyObject *args)
     }
     if (ok) {
         const double *d[ARRAYS];
-        for (int x = 0; x < ARRAYS; x++)
-            d[x] = (const double *)view[x].buf;
-        Drive *drives = PyMem_Malloc((size_t)joints * sizeof(Drive));
+        Drive *drives = drives_of(view, d, joints);
         ok = drives != NULL;
-        if (!ok)
-            PyErr_NoMemory();
-        for (Py_ssize_t j = 0; ok && j < joints; j++)
-            drives[j] = (Drive){d[KP][j], d[VELOCITY_FF][j], d[ACCEL_GAIN][j], d[DECAY][j], d[V_LIMIT][j],
-                                d[DV_LIMIT][j], d[RESOLUTION][j]};
         if (ok) {
             Py_BEGIN_ALLOW_THREADS
             run_shared(rows, joints, width, depth, d[P_REF], d[V_REF], d[A_REF], source, delay,

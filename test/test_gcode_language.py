@@ -275,3 +275,14 @@ def test_arcs_in_the_yz_plane():
     top = max(points, key=lambda p: p["z"])
     assert top["z"] == pytest.approx(1.0, abs=1e-3) and top["y"] == pytest.approx(1.0, abs=0.05)
     assert all(math.hypot(p["y"] - 1.0, p["z"]) == pytest.approx(1.0, abs=1e-9) for p in points)
+
+
+@pytest.mark.parametrize("machine, reason", [
+    ("mill3", "machine 'mill3' has no B axis (its axes: X, Y, Z)"),  # the machine is the cause
+    ("lathe", "machine 'lathe' has no B axis (its axes: X, Z)"),
+    ("5ax_head_table", "only X, Y and Z axis words are supported"),  # it has B: the front end is
+])
+def test_a_rotary_axis_word_is_refused_for_the_machine_that_lacks_it(machine, reason):
+    with pytest.raises(GcodeError) as err:
+        translate("G0 X0 Z1\nG0 B90\nM2\n", Context("rotary", machine))
+    assert str(err.value) == f"line 2: B90: {reason}"

@@ -75,7 +75,7 @@ def _profile(tr: "Translator", blocks: list[Block], start: tuple[float, float], 
     out: list = []
     motion = None
     for b in blocks:
-        check_groups(b)
+        check_groups(b, tr.ctx.machine)
         g = [round(v, 1) for v in b.g]
         for code in g:
             if code in (0.0, 1.0, 2.0, 3.0):

@@ -46,8 +46,9 @@ M_REFUSED: dict[float, str] = {
 }
 
 
-def check_groups(block: Block) -> None:
-    """Refuse unknown codes and two codes of one modal group in a line."""
+def check_groups(block: Block, machine: str = "") -> None:
+    """Refuse unknown codes, two codes of one modal group in a line, and axis words beside
+    X, Y and Z: for a machine reason where ``machine`` lacks that axis."""
     seen: dict[str, float] = {}
     for letter, codes, groups, refused in (("G", block.g, G_GROUPS, G_REFUSED), ("M", block.m, M_GROUPS, M_REFUSED)):
         for code in codes:
@@ -65,7 +66,20 @@ def check_groups(block: Block) -> None:
             seen[key] = code
     if any(k in block.words for k in "ABCUVW"):
         letter = next(k for k in "ABCUVW" if k in block.words)
-        raise GcodeError(block.line, word_text(letter, block.words[letter]), "only X, Y and Z axes are supported")
+        axes = _axes_of(machine)
+        why = (f"machine '{machine}' has no {letter} axis (its axes: {', '.join(a.upper() for a in axes)})"
+               if axes and letter.lower() not in axes else "only X, Y and Z axis words are supported")
+        raise GcodeError(block.line, word_text(letter, block.words[letter]), why)
+
+
+def _axes_of(machine: str) -> tuple[str, ...]:
+    """The named machine's axes (lower case, its joint names but the spindle); () if unknown."""
+    from cnc_msgs_py.machine import SPINDLE, MachineError, load_machine
+
+    try:
+        return tuple(j for j in load_machine(machine).joint_names if j != SPINDLE) if machine else ()
+    except MachineError:
+        return ()
 
 
 @dataclass

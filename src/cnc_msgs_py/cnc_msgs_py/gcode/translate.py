@@ -118,7 +118,7 @@ class Translator:
         """One executed line; True at the program's end (M2, M30)."""
         self.line = block.number if block.number is not None else block.line
         self._directives(block)
-        check_groups(block)
+        check_groups(block, self.ctx.machine)
         used: set[str] = set()
         stop = self._block(block, used)
         left = [k for k in block.words if k not in used]

@@ -45,6 +45,8 @@ LEFT_OUT = {
     "roparams.ngc": "language demo, moves no axis", "g20sub.ngc": "a subroutine file, moves no axis of its own",
     "nestedcall.ngc": "language demo (its own 'callsub' typo is refused by rs274 too)",
     "increment.ngc": "a subroutine file, moves no axis of its own",
+    "m70m72-demo.ngc": "language demo (M70/M72), moves no axis: read to its end",
+    "m73-demo.ngc": "language demo (M73), moves no axis: read to its end",
 }
 # a machine reason: travel, an axis it lacks, the spindle, a tool of its table that does not fit the
 # program (a cutter too big for a compensated entry)
@@ -52,7 +54,7 @@ MACHINE_REASONS = ("outside its travel", "has no", "exceeds the spindle", "canno
 # the program asks for what the machine must not do or the job does not give: drilling with
 # the spindle off, a work offset the job has no values for, a position it takes from where the
 # machine happens to stand (G92 before any move, without program.start)
-PROGRAM_REASONS = ("the spindle is off", "no such work offset", "position is unknown here")
+PROGRAM_REASONS = ("the spindle is off", "no such work offset", "position is unknown here", "from an unknown position")
 
 
 def machine_of(name: str) -> str:

@@ -13,7 +13,7 @@ its loops may jump back ``MAX_ITERATIONS`` times in all, its calls nest ``MAX_CA
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Iterator
+from typing import Callable, Iterator
 
 from .expressions import ExprError
 from .lexer import Block, GcodeError, Line, OWord, read_lines
@@ -46,6 +46,8 @@ class Frame:
     pc: int
     at: int  # the program line a subroutine file's lines report (the call's line)
     repeats: dict[int, int] = field(default_factory=dict)
+    saved: dict | None = None  # the modal state M70 saved in this call (gcode.saved_state)
+    autorestore: dict | None = None  # the modal state M73 saved, restored as the call returns
 
 
 def pair(unit: Unit) -> Unit:
@@ -124,6 +126,7 @@ class Executor:
         self.params = params
         self.frames = [Frame(self.main, 0, 0)]
         self.iterations = 0
+        self.on_return: Callable[[Frame], None] = lambda frame: None  # as a subroutine returns (M73)
 
     def blocks(self) -> Iterator[Block]:
         """The program's blocks in execution order; ends where the program's lines end."""
@@ -209,7 +212,7 @@ class Executor:
             self._call(o, values, at)
         elif kind in ("endsub", "return"):
             self.params.ret(values[0] if values else None)
-            self.frames.pop()
+            self.on_return(self.frames.pop())
         elif kind == "if":
             frame.pc = self._branch(unit, i)
         elif kind in ("elseif", "else"):

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from . import arcs, compensation, offsets, surface_speed, system
+from . import arcs, compensation, offsets, saved_state, surface_speed, system
 from .control import Executor
 from .drilling import hole
 from .finishing import g70
@@ -91,6 +91,7 @@ class Translator:
     # ---- the program
     def run(self, text: str) -> list[Operation]:
         self.executor = Executor(text, self.ctx.subroutines, self.params)
+        self.executor.on_return = saved_state.on_return(self)
         self.source = self.executor.blocks()
         ended = False
         for block in self.source:
@@ -193,6 +194,8 @@ class Translator:
             s.spindle_on = True
         if 5.0 in m:
             s.spindle_on = False
+        if any(code in m for code in saved_state.CODES):
+            saved_state.codes(self, b, m)  # after the spindle, before coolant: LinuxCNC's order
         if 7.0 in m or 8.0 in m:
             s.mist, s.flood = s.mist or 7.0 in m, s.flood or 8.0 in m
         if 9.0 in m:

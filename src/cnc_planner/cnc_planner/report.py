@@ -58,7 +58,15 @@ def last_job(run: Run) -> tuple[str | None, SimpleNamespace | None]:
 
 def build_report(run: Run, machine: Machine | None = None) -> dict:
     """The figures of a run's last job, judged on feedback; ``machine``: the description
-    it ran on, if not the one the job names in config (a drawn one, in tests)."""
+    it ran on, if not the one the job names in config (a drawn one, in tests). Baselines
+    still being computed that the report did not ask for (a rejected job's) are stopped."""
+    try:
+        return _judged(run, machine)
+    finally:
+        drop_pending()
+
+
+def _judged(run: Run, machine: Machine | None) -> dict:
     job_id, job = last_job(run)
     status = final_status(run, job_id)
     axes = tuple(j for j in run.joints if j != SPINDLE)
@@ -91,7 +99,6 @@ def build_report(run: Run, machine: Machine | None = None) -> dict:
         report[section.key] = judged  # (None: nothing of the kind's to judge, as a move job at one rpm)
     if job.vibration is not None and not (section is not None and section.judges_chips):
         report["aircut"] = aircut_section(run)
-    drop_pending()
     return report
 
 

@@ -11,6 +11,7 @@ DIAGNOSTICS = "/diagnostics"
 INJECT_FAULT = "inject_fault"  # bridge fault injection (std_msgs/String, JSON)
 ALARM_RESET = "alarm_reset"  # acknowledges a latched bridge alarm (std_msgs/String: who/why)
 CLOCK = "/clock"
+PLANNER_NODE = "cnc_planner"  # the planner node's name under its namespace
 BRIDGE_NODE = "cnc_servo_bridge"  # its lifecycle services: <namespace>/cnc_servo_bridge/change_state, get_state
 PID_KEY = "pid"  # in both nodes' diagnostics: the process, so a run can tell its own nodes from others
 PLANT_KEY = "plant"  # in the bridge's diagnostics: the plant it emulates ("description": the description itself)

@@ -45,7 +45,7 @@ def take_latest(subscription):
 
 class PlannerNode(Node):
     def __init__(self) -> None:
-        super().__init__("cnc_planner")
+        super().__init__(topics.PLANNER_NODE)
         declare(self, PARAMETERS)
         machine = load_machine(value(self, "machine"))
         settings = Settings(

@@ -38,6 +38,7 @@ QOS = {
     "job_events": qos.JOB_EVENTS, "joint_trajectory": qos.JOINT_TRAJECTORY,
     "joint_states": qos.JOINT_STATES, "/diagnostics": qos.DIAGNOSTICS, "/clock": qos.CLOCK,
 }
+HEARTBEAT_WAIT_S = 1.5  # wall time to hear a planner's heartbeat (each 1 s) from nodes named as ours
 SETTLE_S = 0.2  # sim time recorded after the final status, so the drives' settling shows
 PROCESS_CHECK_S = 0.1  # wall time between checks of the deadline and the node processes
 SPIN_S = 0.05  # wall time a spin waits for a reason to return (the recorder's wake)
@@ -159,8 +160,15 @@ class Session:
     def __enter__(self) -> "Session":
         try:
             self.spin_until(self.ready, 30.0, "the planner and bridge did not come up")
+            # Two runs in one domain and namespace would take each other's goals. The other
+            # run's heartbeat may come after ours (our nodes were up before this recorder);
+            # its nodes are in the graph once ours are, under our names: then wait for its
+            # heartbeat (a node that has just died stays in the graph a while, silent).
+            if self._doubled():
+                deadline = time.monotonic() + HEARTBEAT_WAIT_S
+                self.spin_until(lambda: bool(self.recorder.heard.pids - self.own_pids())
+                                or time.monotonic() > deadline, 2 * HEARTBEAT_WAIT_S, "the nodes went quiet")
             if others := sorted(self.recorder.heard.pids - self.own_pids()):
-                # Two runs in one domain and namespace would take each other's goals.
                 raise RunError(f"other nodes (pid {', '.join(map(str, others))}) already run at "
                                f"{self.recorder.get_namespace()} in ROS_DOMAIN_ID {self.env.get('ROS_DOMAIN_ID', '0')} "
                                f"(another cnc-run?): set ROS_DOMAIN_ID to a free domain")
@@ -171,6 +179,13 @@ class Session:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+    def _doubled(self) -> bool:
+        """A planner or bridge of another process under this namespace, in the DDS graph."""
+        names = self.recorder.get_node_names_and_namespaces()
+        namespace = self.recorder.get_namespace()
+        return any(sum(1 for n, ns in names if n == node and ns == namespace) > 1
+                   for node in (topics.PLANNER_NODE, topics.BRIDGE_NODE))
 
     @property
     def procs(self) -> dict[str, "subprocess.Popen"]:

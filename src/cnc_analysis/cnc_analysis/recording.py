@@ -87,6 +87,11 @@ class Run:
     def column(self, joint: str) -> int:
         return self.joints.index(joint)
 
+    def feedback_at(self, window: np.ndarray) -> dict[str, float]:
+        """Each joint's feedback at the first sample of ``window`` (a mask of feedback samples)."""
+        first = int(np.argmax(window))
+        return {j: float(self.feedback[first, i]) for i, j in enumerate(self.joints)}
+
 
 def read_run(bag: Path) -> Run:
     """Read a recorded run.

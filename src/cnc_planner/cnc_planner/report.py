@@ -93,7 +93,7 @@ def _judged(run: Run, machine: Machine | None) -> dict:
     window = job_window(run, status["job_id"])
     section = KINDS[job.kind].report
     # The section's baselines are planned on the other core while the run is judged.
-    beside(section, job, machine, {j: float(run.feedback[window][0, run.column(j)]) for j in run.joints})
+    beside(section, job, machine, run.feedback_at(window))
     report["drives"] = drives_section(run, machine)
     if section is not None and (judged := section.judge(run, job, machine, window)) is not None:
         report[section.key] = judged  # (None: nothing of the kind's to judge, as a move job at one rpm)

@@ -70,7 +70,7 @@ def other_cycles(job: SimpleNamespace, machine: Machine, start: dict[str, float]
 
 def drill_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray) -> dict:
     kin = Kinematics(machine, job.setup, job.tool)
-    start = {j: float(run.feedback[window][0, run.column(j)]) for j in run.joints}
+    start = run.feedback_at(window)
     cycle = drill_cycle(job, machine, kin, (start["x"], start["y"]))
     # A tilted setup is analysed from the cycle's start (the first S1): before it the
     # rotaries turn from wherever the machine stood, where the program's R plane means

@@ -129,15 +129,17 @@ def _keeping_the_tool(tr: "Translator", change) -> None:
     s.position = tr.offsets.to_program(s.work_offset, table)
 
 
+def use_system(tr: "Translator", name: str) -> None:
+    """Work system ``name`` (one the program has) in force, the tool staying where it is."""
+    _keeping_the_tool(tr, lambda: setattr(tr.state, "work_offset", name))
+
+
 def select(tr: "Translator", b: Block, code: float) -> None:
     """G54..G59.3: the system in force, the tool staying where it is."""
     name = word_text("G", code)
     if name not in tr.offsets.systems:
         raise GcodeError(b.line, name, "no such work offset given with the program (work_offsets) or set by G10 L2")
-
-    def change() -> None:
-        tr.state.work_offset = name
-    _keeping_the_tool(tr, change)
+    use_system(tr, name)
 
 
 def _values(tr: "Translator", b: Block, used: set[str]) -> dict[str, float]:

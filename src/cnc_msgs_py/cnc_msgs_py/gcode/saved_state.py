@@ -13,7 +13,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from .lexer import Block, GcodeError
-from .offsets import _keeping_the_tool
+from .offsets import use_system
 
 if TYPE_CHECKING:  # the translator imports this module
     from .translate import Translator
@@ -32,7 +32,7 @@ def restore(tr: "Translator", saved: dict) -> None:
     for name in SAVED[:-1]:
         setattr(tr.state, name, saved[name])
     if saved["work_offset"] != tr.state.work_offset:
-        _keeping_the_tool(tr, lambda: setattr(tr.state, "work_offset", saved["work_offset"]))
+        use_system(tr, saved["work_offset"])
 
 
 def codes(tr: "Translator", b: Block, m: list[float]) -> None:

@@ -20,7 +20,6 @@ from pathlib import Path
 import pytest
 
 from cnc_msgs_py.gcode import Context, GcodeError, translate
-from cnc_msgs_py.gcode.document import job_document
 from cnc_msgs_py.job import parse_job
 from cnc_msgs_py.machine import load_machine
 from cnc_planner.planning import plan_job
@@ -36,12 +35,9 @@ TIP_TOLERANCE_MM = 1e-3
 
 @pytest.mark.parametrize("name,machine", [("mill_g41_g42.ngc", "mill3"), ("lathe_g42.ngc", "lathe")])
 def test_compensated_paths_end_where_linuxcncs_do_and_plan(name, machine):
-    path = ROOT / "test" / "gcode_oracle" / name
-    output = oracle.recorded(examples.RS274_RECORDED)(path.read_text())
+    output, cuts, job, ours = compensation_oracle.compared(ROOT / "test" / "gcode_oracle" / name,
+                                                           oracle.recorded(examples.RS274_RECORDED))
     assert oracle.canonical_moves(output)[1] is None
-    cuts = compensation_oracle.cuts(output)
-    job = parse_job(job_document(path))
-    ours = compensation_oracle.feed_ends([m for _, _, d in job.program.operations for m in d["move"]])
     assert compensation_oracle.TOLERANCE_MM == TIP_TOLERANCE_MM
     assert compensation_oracle.agree(cuts, ours)  # LinuxCNC's ends among ours in order, ours on its path
     assert len(cuts) >= 9

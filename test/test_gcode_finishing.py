@@ -18,8 +18,6 @@ import pytest
 
 from cnc_msgs_py.gcode import Context, GcodeError, translate
 from cnc_msgs_py.gcode.compensation import Segment, offset_path
-from cnc_msgs_py.gcode.document import job_document
-from cnc_msgs_py.job import parse_job
 from cnc_msgs_py.machine import load_machine
 from cnc_planner.planning import plan_job
 
@@ -35,12 +33,9 @@ LATHE = "G18 G21 G8 G90 G94\nM3 S1000\nF100\nG0 X12 Z3\n"
 
 @pytest.mark.parametrize("name,count", [("lathe_g70.ngc", 20), ("lathe_g70_sides.ngc", 24)])
 def test_g70_ends_every_feed_move_where_linuxcnc_does_and_plans(name, count):
-    path = ROOT / "test" / "gcode_oracle" / name
-    output = oracle.recorded(examples.RS274_RECORDED)(path.read_text())
+    output, cuts, job, ours = compensation_oracle.compared(ROOT / "test" / "gcode_oracle" / name,
+                                                           oracle.recorded(examples.RS274_RECORDED))
     assert oracle.canonical_moves(output)[1] is None
-    cuts = compensation_oracle.cuts(output)
-    job = parse_job(job_document(path))
-    ours = compensation_oracle.feed_ends([m for _, _, d in job.program.operations for m in d["move"]])
     assert len(cuts) == count and len(ours) >= len(cuts)
     assert compensation_oracle.agree(cuts, ours)  # LinuxCNC's ends among ours in order, ours on its path
     assert plan_job(job, load_machine("lathe")).duration > 0.0

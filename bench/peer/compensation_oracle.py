@@ -19,6 +19,7 @@ import subprocess
 import sys
 import tempfile
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -77,6 +78,17 @@ def feed_ends(moves: list[dict]) -> np.ndarray:
     rows = [[m["linear"].get(a, 0.0) for a in "xyz"] if "linear" in m else [math.nan] * 3
             for m in moves if "linear" in m or "rapid" in m]
     return np.array(rows, dtype=float).reshape(-1, 3)
+
+
+def compared(path: Path, recorded_output) -> tuple[str, list, SimpleNamespace, np.ndarray]:
+    """A test program's rs274 output (``recorded_output(text)``) and LinuxCNC's cuts in it, its
+    job through our front end, and our feed ends: what the oracle tests set side by side."""
+    from cnc_msgs_py.gcode.document import job_document
+    from cnc_msgs_py.job import parse_job
+
+    output = recorded_output(path.read_text())
+    job = parse_job(job_document(path))
+    return output, cuts(output), job, feed_ends([m for _, _, d in job.program.operations for m in d["move"]])
 
 
 def agree(path: list, ours: np.ndarray) -> bool:

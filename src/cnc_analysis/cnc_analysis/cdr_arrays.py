@@ -123,8 +123,7 @@ class Columns:
 
 def read_alike(messages: Messages | list[bytes], fields: tuple) -> Columns | None:
     """Messages of one byte length as arrays; None if they are not alike (see the module)."""
-    if not isinstance(messages, Messages):
-        messages = Messages.of(messages)
+    messages = Messages.of(messages)
     try:
         layout = layout_of(messages[0], fields)
     except (ValueError, struct.error):
@@ -172,8 +171,7 @@ def _by_size(messages: Messages) -> list[np.ndarray]:
 def joint_states(messages: Messages | list[bytes], deserialize: Deserialize) -> list[Feedback]:
     """JointState messages in order as runs of alike ones (joint names, stamps in ns,
     positions, velocities); the joint names of the first run are the recording's."""
-    if not isinstance(messages, Messages):
-        messages = Messages.of(messages)
+    messages = Messages.of(messages)
     out: list[tuple[int, Feedback]] = []
     for group in _by_size(messages):
         alike = read_alike(messages.take(group), JOINT_STATE)
@@ -204,8 +202,7 @@ def _chunk(m: Any) -> Setpoints:
 
 def trajectory_chunks(messages: Messages | list[bytes], deserialize: Deserialize) -> list[Setpoints]:
     """Every JointTrajectory message as arrays, in order."""
-    if not isinstance(messages, Messages):
-        messages = Messages.of(messages)
+    messages = Messages.of(messages)
     out: dict[int, Setpoints] = {}
     for group in _by_size(messages):
         alike = read_alike(messages.take(group), JOINT_TRAJECTORY)

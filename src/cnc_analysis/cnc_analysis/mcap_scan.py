@@ -45,7 +45,10 @@ class Messages:
     lengths: np.ndarray  # int64
 
     @classmethod
-    def of(cls, messages: list[bytes]) -> "Messages":
+    def of(cls, messages: "Messages | list[bytes]") -> "Messages":
+        """``messages`` as Messages (as they are if they are)."""
+        if isinstance(messages, Messages):
+            return messages
         lengths = np.array([len(m) for m in messages], dtype=np.int64)
         offsets = np.concatenate(([0], np.cumsum(lengths)[:-1])).astype(np.int64)
         return cls(np.frombuffer(b"".join(messages), dtype=np.uint8), offsets, lengths)

@@ -186,7 +186,7 @@ class Executor:
                 frame.pc += 1
                 block = ln.evaluate(self.params, at)
             except ExprError as err:
-                raise self._located(unit, ln, at, GcodeError(at, err.word, err.reason)) from None
+                raise self._located(unit, ln, at, GcodeError(at, err.word, err.reason, err.needs_start)) from None
             except GcodeError as err:
                 raise self._located(unit, ln, at, err) from None
             if unit.label:
@@ -198,7 +198,7 @@ class Executor:
         """An error inside a subroutine file, at the program line that called it."""
         if not unit.label or err.word.endswith(".ngc"):
             return err
-        return GcodeError(at, unit.label, f"line {ln.line}: {err.reason}")
+        return GcodeError(at, unit.label, f"line {ln.line}: {err.reason}", err.needs_start)
 
     def _statement(self, frame: Frame, unit: Unit, ln: Line, at: int) -> None:
         o, i = ln.o, frame.pc

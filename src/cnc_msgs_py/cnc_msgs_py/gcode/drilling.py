@@ -47,7 +47,7 @@ def hole(tr: "Translator", b: Block, used: set[str]) -> None:
     initial = tr.cycle.get("initial_z")
     if s.incremental:
         if initial is None:
-            raise GcodeError(b.line, name, "G91 cycles measure R from the initial Z, which is unknown here")
+            raise GcodeError(b.line, name, "G91 cycles measure R from the initial Z, which is unknown here", True)
         r = initial + s.length(r_word)
         z = r + s.length(z_word)
     else:
@@ -61,7 +61,7 @@ def hole(tr: "Translator", b: Block, used: set[str]) -> None:
     clearance = None
     if s.retract_initial:
         if initial is None:
-            raise GcodeError(b.line, "G98", "the initial Z is unknown: move Z before the cycle, or use G99")
+            raise GcodeError(b.line, "G98", "the initial Z is unknown: move Z before the cycle, or use G99", True)
         clearance = initial if initial > r else None
     feed = tr._feed_mm_min(b.line, name)
     block = {"holes": [], **drill_plane(r, z), "feed": feed, "overlap": tr.overlap}
@@ -84,10 +84,10 @@ def hole(tr: "Translator", b: Block, used: set[str]) -> None:
                 if s.incremental:
                     if axis not in pos:
                         raise GcodeError(b.line, word_text(axis.upper(), b.words[axis.upper()]),
-                                         "incremental hole from an unknown position")
+                                         "incremental hole from an unknown position", True)
                     v += pos[axis]
                 pos[axis] = v
             elif axis not in pos:
-                raise GcodeError(b.line, name, f"the hole's {axis.upper()} is unknown: give {axis.upper()}")
+                raise GcodeError(b.line, name, f"the hole's {axis.upper()} is unknown: give {axis.upper()}", True)
         holes.append([pos["x"], pos["y"]])
     pos["z"] = clearance if clearance is not None else r

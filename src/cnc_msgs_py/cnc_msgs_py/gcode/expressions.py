@@ -32,10 +32,11 @@ Expr = Callable[[Env], float]
 class ExprError(ValueError):
     """A value that cannot be read or evaluated: ``word`` is what the reason quotes."""
 
-    def __init__(self, word: str, reason: str) -> None:
+    def __init__(self, word: str, reason: str, needs_start: bool = False) -> None:
         super().__init__(reason)
         self.word = word
         self.reason = reason
+        self.needs_start = needs_start  # as GcodeError's
 
 
 def _div(a: float, b: float) -> float:

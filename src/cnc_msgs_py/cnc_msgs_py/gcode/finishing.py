@@ -62,7 +62,7 @@ def g70(tr: "Translator", b: Block, used: set[str]) -> None:
         sx, sz = s.length(b.words["X"]) / (2.0 if s.diameter else 1.0), s.length(b.words["Z"])
     else:
         if "x" not in s.position or "z" not in s.position:
-            raise GcodeError(b.line, "G70", "starts where the tool is, which is unknown here: give X and Z")
+            raise GcodeError(b.line, "G70", "starts where the tool is, which is unknown here: give X and Z", True)
         sx = s.length(b.words["X"]) / (2.0 if s.diameter else 1.0) if "X" in b.words else s.position["x"]
         sz = s.length(b.words["Z"]) if "Z" in b.words else s.position["z"]
     used.update(k for k in "XZ" if k in b.words)

@@ -27,7 +27,7 @@ def _at(tr: "Translator", b: Block, name: str) -> tuple[float, float]:
     if tr.state.plane != 18.0:
         raise GcodeError(b.line, name, "a lathe cycle needs the XZ plane (G18)")
     if "x" not in pos or "z" not in pos:
-        raise GcodeError(b.line, name, "starts where the tool is, which is unknown here: move X and Z first")
+        raise GcodeError(b.line, name, "starts where the tool is, which is unknown here: move X and Z first", True)
     tr._need_spindle(b.line, name)
     return pos["x"], pos["z"]
 

@@ -26,12 +26,15 @@ O_OPTIONAL = {"endsub", "return"}  # may return one [expression]
 
 
 class GcodeError(JobError):
-    """A program refused at a line: its field is ``line N`` and its reason ``<word>: <why>``."""
+    """A program refused at a line: its field is ``line N`` and its reason ``<word>: <why>``.
+    ``needs_start``: the line reads where the tool stands before the program has said it,
+    which the machine knows when the program runs (kinds.program starts it there)."""
 
-    def __init__(self, line: int, word: str, reason: str) -> None:
+    def __init__(self, line: int, word: str, reason: str, needs_start: bool = False) -> None:
         super().__init__(f"line {line}", f"{word}: {reason}")
         self.line = line
         self.word = word
+        self.needs_start = needs_start
 
 
 @dataclass
@@ -118,7 +121,7 @@ class Line:
             values = [(letter, value(env)) for letter, value in self.words]
             writes = [(target(env), value(env)) for target, value in self.settings]
         except ExprError as err:
-            raise GcodeError(at, err.word, err.reason) from None
+            raise GcodeError(at, err.word, err.reason, err.needs_start) from None
         for letter, value in values:
             if letter == "G":
                 block.g.append(value)
@@ -132,7 +135,7 @@ class Line:
             try:
                 env.write(target, value)  # type: ignore[attr-defined]
             except ExprError as err:
-                raise GcodeError(at, err.word, err.reason) from None
+                raise GcodeError(at, err.word, err.reason, err.needs_start) from None
         return block
 
 

@@ -189,14 +189,14 @@ def g10(tr: "Translator", b: Block, used: set[str], level: float) -> None:
             unknown = next((a for a in values if table[AXES.index(a)] is None), None)
             if unknown is not None:
                 raise GcodeError(b.line, word, f"the tool's {unknown.upper()} position is unknown here: "
-                                               f"move {unknown.upper()} first")
+                                               f"move {unknown.upper()} first", True)
             shifted = _apply(_matrix(sys.rotation_deg),
                              [reading[a] + d if a in reading else None for a, d in zip(AXES, offsets.g92)])
             for k, a in enumerate(AXES):
                 if table[k] is not None and shifted[k] is not None:
                     sys.origin[k] = table[k] - shifted[k]
                 elif a in values:
-                    raise GcodeError(b.line, word, "the tool's position is unknown here: move X, Y and Z first")
+                    raise GcodeError(b.line, word, "the tool's position is unknown here: move X, Y and Z first", True)
         offsets.systems[name] = sys
     _keeping_the_tool(tr, change)
 
@@ -213,7 +213,7 @@ def g92(tr: "Translator", b: Block, used: set[str], code: float) -> None:
         missing = [a for a in values if a not in s.position]
         if missing:
             raise GcodeError(b.line, name, f"the {missing[0].upper()} position is unknown here: move "
-                                           f"{missing[0].upper()} first or give program.start")
+                                           f"{missing[0].upper()} first or give program.start", True)
 
     def change() -> None:
         if code == 92.0:

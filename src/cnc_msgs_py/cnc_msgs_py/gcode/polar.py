@@ -27,7 +27,7 @@ def polar_xy(s: "Modal", b: Block, used: set[str]) -> tuple[float, float]:
     if s.plane != 17.0:
         raise GcodeError(b.line, word, "polar coordinates lie in the XY plane (G17)")
     if "x" not in s.position or "y" not in s.position:
-        raise GcodeError(b.line, word, "the current X/Y is unknown here: move X and Y first")
+        raise GcodeError(b.line, word, "the current X/Y is unknown here: move X and Y first", True)
     used.update(k for k in POLAR if k in b.words)
     x, y = s.position["x"], s.position["y"]
     r0, a0 = math.hypot(x, y), math.degrees(math.atan2(y, x))

@@ -24,7 +24,7 @@ def _position(tr: "Translator", axis: str, word: str) -> float:
     s = tr.state
     if axis not in s.position:
         raise ExprError(word, f"the {axis.upper()} position is unknown here (move {axis.upper()} first "
-                              "or give program.start)")
+                              "or give program.start)", True)
     value = s.position[axis]
     return value / 25.4 if s.inch else value
 

@@ -101,7 +101,7 @@ class Translator:
                 if not block.where or err.word.endswith(".ngc"):
                     raise
                 name, _, at = block.where.partition(": ")
-                raise GcodeError(block.line, name, f"{at}: {err.reason}") from None
+                raise GcodeError(block.line, name, f"{at}: {err.reason}", err.needs_start) from None
             if stop:
                 ended = True
                 break
@@ -263,7 +263,7 @@ class Translator:
             z = s.length(b.words["Z"])
             if level == 10.0:
                 if "z" not in s.position:
-                    raise GcodeError(b.line, "G10 L10", "the Z position is unknown here: move Z first")
+                    raise GcodeError(b.line, "G10 L10", "the Z position is unknown here: move Z first", True)
                 z = s.position["z"] + self.applied_length() - z
                 if s.length_offset and s.length_tool == tool:
                     s.position["z"] = s.length(b.words["Z"])  # the axis stays; its reading changes
@@ -363,7 +363,7 @@ class Translator:
                 if self.state.incremental:
                     if axis not in pos:
                         raise GcodeError(b.line, word_text(axis.upper(), b.words[axis.upper()]),
-                                         "incremental move from an unknown position (give it absolutely first)")
+                                         "incremental move from an unknown position (give it absolutely first)", True)
                     v += pos[axis]
                 pos[axis] = v
         return dict(pos)
@@ -383,7 +383,7 @@ class Translator:
         name = word_text("G", s.motion)
         (a, c), offsets = PLANES[s.plane]
         if a not in s.position or c not in s.position:
-            raise GcodeError(b.line, name, "an arc from an unknown position (move both plane axes first)")
+            raise GcodeError(b.line, name, "an arc from an unknown position (move both plane axes first)", True)
         start = (s.position[a], s.position[c])
         before = dict(s.position)
         end_pos = self._target(b, used)

@@ -93,8 +93,9 @@ def test_g98_keeps_travels_at_the_initial_z():
     job = parse_job(program_doc(text, "mill3", start=row.start))
     (_, op, _), = job.program.operations
     assert op.drill.clearance_z == pytest.approx(peer_rows.CLEARANCE_MM * 1e-3)
-    with pytest.raises(JobError, match=r"^line 4: G98: the initial Z is unknown"):
-        parse_job(program_doc(text, "mill3"))
+    assert parse_job(program_doc(text, "mill3")).program.start_from_machine  # its Z, where the machine stands
+    with pytest.raises(JobError, match=r"^line 4: G98: the initial Z is unknown"):  # a start without Z
+        parse_job(program_doc(text, "mill3", start={k: v for k, v in row.start.items() if k != "z"}))
 
 
 def test_a_program_of_several_operations_is_one_plan():

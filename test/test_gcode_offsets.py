@@ -123,7 +123,7 @@ def test_g53_is_the_machine_position_with_the_tool_length_and_the_offsets_taken_
 
 
 @pytest.mark.parametrize("text,reason", [
-    ("G0 X0 Y0 Z0\nG55", "line 2: G55: no such work offset given with the program"),
+    ("G0 X0 Y0 Z0\nG55", "line 2: G55: machine 'mill3' keeps no G55 work offset"),
     ("G0 X0\nG10 L2 X1", "line 2: G10 L2: needs P"),
     ("G0 X0\nG10 L20 P1 X1 R3", "line 2: R3: G10 L20 sets no rotation"),
     ("G10 L20 P1 X1", "line 1: G10 L20: the tool's X position is unknown here"),

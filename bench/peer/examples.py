@@ -3,11 +3,11 @@ through our G-code front end and planner, beside LinuxCNC's own interpreter (rs2
 
 The machining examples each run on a shipped machine with its own tool table (mill3, or
 lathe for the lathe programs) and plan, or are refused: for a machine reason (travel, an
-axis the machine lacks) or for a language reason (a word this front end refuses, with its
-reason). Probing, remap and I/O demos and the language demos that move no axis are left
-out, each with why. A refusal for a program reason is the program's own doing: drilling
-with the spindle off, a work offset (G55..) the job gives no values for. The files are LinuxCNC's (GPL): they are read where they are
-installed, never copied; bench/results/linuxcnc_examples.json keeps each one's sha256,
+axis the machine lacks, a work offset (G55..) it keeps none of, a probe it lacks) or for a
+language reason (a word this front end refuses, with its reason). Probing, remap and I/O
+demos and the language demos that move no axis are left out, each with why. A refusal for a
+program reason is the program's own doing: drilling with the spindle off. The files are
+LinuxCNC's (GPL): they are read where they are installed, never copied; bench/results/linuxcnc_examples.json keeps each one's sha256,
 outcome and rs274's verdict, and test/test_gcode_examples.py checks the outcomes.
 
 Our own must-show programs (test/programs/*.ngc) and the front end's oracle programs
@@ -49,12 +49,12 @@ LEFT_OUT = {
     "m73-demo.ngc": "language demo (M73), moves no axis: read to its end",
 }
 # a machine reason: travel, an axis it lacks, the spindle, a tool of its table that does not fit the
-# program (a cutter too big for a compensated entry)
-MACHINE_REASONS = ("outside its travel", "has no", "exceeds the spindle", "cannot run", "than the tool radius")
-# the program asks for what the machine must not do or the job does not give: drilling with
-# the spindle off, a work offset the job has no values for, a position it takes from where the
-# machine happens to stand (G92 before any move, without program.start)
-PROGRAM_REASONS = ("the spindle is off", "no such work offset", "position is unknown here", "from an unknown position")
+# program (a cutter too big for a compensated entry), a work offset it keeps none of, a probe
+MACHINE_REASONS = ("outside its travel", "has no", "exceeds the spindle", "cannot run", "than the tool radius",
+                   "keeps no")
+# the program asks for what the machine must not do: drilling with the spindle off (a position
+# read before the program gives one is where the machine stands, as in LinuxCNC)
+PROGRAM_REASONS = ("the spindle is off", "position is unknown here", "from an unknown position")
 
 
 def machine_of(name: str) -> str:

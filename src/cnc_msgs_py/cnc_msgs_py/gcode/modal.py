@@ -37,6 +37,9 @@ G_REFUSED: dict[float, str] = {
     84.0: "tapping is not a method of ours: the drill method does not reverse the spindle in step with Z",
     93.0: "inverse time feed is not supported",
 }
+# probing moves stop on a probe's signal: our machine descriptions (and the bridge's drives)
+# have no probe input, so they are the machine's to refuse
+PROBING = (38.2, 38.3, 38.4, 38.5)
 M_GROUPS: dict[float, str] = {2.0: "stop", 30.0: "stop", 3.0: "spindle", 4.0: "spindle", 5.0: "spindle",
                               6.0: "tool change", 61.0: "tool change", 7.0: "mist", 8.0: "flood", 9.0: "coolant",
                               **{code: "modal state" for code in (70.0, 71.0, 72.0, 73.0)}}
@@ -57,6 +60,9 @@ def check_groups(block: Block, machine: str = "") -> None:
             word = word_text(letter, code)
             if code in refused:
                 raise GcodeError(block.line, word, refused[code])
+            if letter == "G" and code in PROBING:
+                raise GcodeError(block.line, word, f"machine '{machine}' has no probe input to stop a probing move"
+                                 if machine else "probing needs a machine with a probe input")
             group = groups.get(code)
             if group is None:
                 raise GcodeError(block.line, word, "not supported by this front end")
@@ -67,13 +73,13 @@ def check_groups(block: Block, machine: str = "") -> None:
             seen[key] = code
     if any(k in block.words for k in "ABCUVW"):
         letter = next(k for k in "ABCUVW" if k in block.words)
-        axes = _axes_of(machine)
+        axes = machine_axes(machine)
         why = (f"machine '{machine}' has no {letter} axis (its axes: {', '.join(a.upper() for a in axes)})"
                if axes and letter.lower() not in axes else "only X, Y and Z axis words are supported")
         raise GcodeError(block.line, word_text(letter, block.words[letter]), why)
 
 
-def _axes_of(machine: str) -> tuple[str, ...]:
+def machine_axes(machine: str) -> tuple[str, ...]:
     """The named machine's axes (lower case, its joint names but the spindle); () if unknown."""
     from cnc_msgs_py.machine import SPINDLE, MachineError, load_machine
 

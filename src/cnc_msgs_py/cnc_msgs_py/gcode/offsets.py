@@ -10,8 +10,9 @@ places them with no change of its own. An offset change ends the open operation 
 holds the setup) and keeps the tool where it stands: its program position is read again
 in the new frame, as LinuxCNC's is.
 
-G54 is the job's ``setup``, G55..G59 ``program.work_offsets``; a system neither gives
-starts at zero, as in a fresh var file, and selecting one that nothing set is refused.
+G54 is the job's ``setup``, G55..G59.3 the machine's var file (``var_file``) and
+``program.work_offsets`` over it; a system none of them gives starts at zero, as in a fresh
+var file, and selecting one that nothing set is refused for the machine reason.
 G10 L2 and L20 (and G92, G52) take absolute values under G91 too, X as a diameter under
 G7, as rs274 reads them. The parameters (#5210-#5219 G92, #5221-#5390 the systems, R the
 rotation about Z) are in mm, as a LinuxCNC machine configured in mm keeps its var file.
@@ -138,7 +139,8 @@ def select(tr: "Translator", b: Block, code: float) -> None:
     """G54..G59.3: the system in force, the tool staying where it is."""
     name = word_text("G", code)
     if name not in tr.offsets.systems:
-        raise GcodeError(b.line, name, "no such work offset given with the program (work_offsets) or set by G10 L2")
+        raise GcodeError(b.line, name, f"machine '{tr.ctx.machine}' keeps no {name} work offset (its var file) and "
+                                       "the program neither gives one (program.work_offsets) nor sets it (G10 L2/L20)")
     use_system(tr, name)
 
 

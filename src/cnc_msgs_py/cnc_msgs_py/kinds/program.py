@@ -4,9 +4,10 @@ other kinds' jobs. The block::
     program:
       gcode: "G21 G90 ... M2"            # the program text
       tool_table: [{tool: 1, length: 50, diameter: 6}]   # T numbers; G43 applies the length
-      work_offsets: {G55: {origin: [100, 0, 0]}}          # G55..G59; G54 is the job's setup
+      work_offsets: {G55: {origin: [100, 0, 0]}}          # G55..G59 over the machine's var file; G54 is the job's setup
       stock: [[0, 20], [-40, 20]]         # G71's real stock, [z, radius] as turn.stock
       start: {x: 7, z: 4}                 # where the tool stands when the program begins
+                                          # (else where the machine stands, if the program asks)
       subroutines: [{name: peck, gcode: "o<peck> sub ... o<peck> endsub"}]   # <name>.ngc files
 
 Without ``tool_table`` the machine's own (``config/machines/<machine>.tbl``) holds the tools.
@@ -22,6 +23,7 @@ from .kind import MAX_LIST, KindSchema
 from .turn import OUTLINE
 
 MAX_PROGRAM_CHARS = 5_000_000
+START_AXES = ("x", "y", "z")  # program.start's axes
 
 TOOL = Obj({"tool": Num("1", min=1, max=99999, integer=True), "length": Num("mm", min=0.0, max=1000.0, default=0.0),
             "diameter": Num("mm", min=0.0, max=500.0, default=None), "nose_radius": Num("mm", min=0.0, max=10.0, default=0.0)})
@@ -32,7 +34,7 @@ PROGRAM = Obj({
     "tool_table": List(TOOL, max_len=1000, default=None),
     "work_offsets": Obj({f"G{n}": Obj(SETUP.fields, default=None) for n in range(55, 60)}, default=None),
     "stock": List(OUTLINE.item, min_len=2, max_len=MAX_LIST, default=None),  # as turn.stock
-    "start": Obj({k: Num("mm", default=None) for k in ("x", "y", "z")}, default=None),
+    "start": Obj({k: Num("mm", default=None) for k in START_AXES}, default=None),
     "subroutines": List(Obj({"name": Str(pattern=r"[A-Za-z0-9_.-]{1,64}"), "gcode": Str()}), max_len=1000, default=None),
 }, default=None)
 
@@ -45,10 +47,16 @@ def check(job: SimpleNamespace) -> None:
 
 def translate_program(doc: dict, job: SimpleNamespace) -> None:
     """The program's operations in ``job.program.operations``: a list of (line, job in SI,
-    its document in mm); any error is ``line N: <word>: <reason>``."""
-    from ..gcode import Context, GcodeError, translate
+    its document in mm); any error is ``line N: <word>: <reason>``.
+
+    Without ``start``, a program that reads where the tool stands before it says so (a G91
+    move, G92, a cycle from the tool's place) starts where the machine stands, as LinuxCNC's
+    does: it is checked here from the program's origin and ``job.program.start_from_machine``
+    says that the planner translates it again from the machine's position (``operations_from``).
+    """
+    from ..gcode import Context, GcodeError
     from ..gcode.tools import machine_tool_table
-    from ..job import parse_job  # the job schema holds this module: imported when used
+    from ..gcode.var_file import machine_work_offsets
     block = doc["program"]
     table = {}
     tools = block.get("tool_table")
@@ -56,19 +64,42 @@ def translate_program(doc: dict, job: SimpleNamespace) -> None:
         if entry["tool"] in table:
             raise JobError("program.tool_table", f"tool {entry['tool']} given twice")
         table[entry["tool"]] = {k: v for k, v in entry.items() if k != "tool"}
+    start = {k: v for k, v in (block.get("start") or {}).items() if v is not None}
     ctx = Context(job_id=job.job_id, machine=job.machine, setup=doc.get("setup") or {}, tool_table=table,
-                  work_offsets={k: v for k, v in (block.get("work_offsets") or {}).items() if v is not None},
-                  stock=block.get("stock"), start={k: v for k, v in (block.get("start") or {}).items() if v is not None},
+                  work_offsets={**machine_work_offsets(job.machine),
+                                **{k: v for k, v in (block.get("work_offsets") or {}).items() if v is not None}},
+                  stock=block.get("stock"), start=start,
                   subroutines={s["name"].lower(): s["gcode"] for s in block.get("subroutines") or []})
+    job.program.context, job.program.start_from_machine = ctx, False
+    try:
+        job.program.operations = _operations(block["gcode"], ctx)
+    except GcodeError as err:
+        if not err.needs_start or block.get("start") is not None:
+            raise
+        from ..gcode.modal import machine_axes
+        job.program.start_from_machine = True
+        job.program.operations = operations_from(job, {a: 0.0 for a in START_AXES if a in machine_axes(job.machine)})
+
+
+def operations_from(job: SimpleNamespace, start_mm: dict[str, float]) -> list:
+    """A ``start_from_machine`` program's operations from ``start_mm`` (program coordinates,
+    mm: where the machine stands when it begins)."""
+    from dataclasses import replace
+    return _operations(job.program.gcode, replace(job.program.context, start=dict(start_mm)))
+
+
+def _operations(gcode: str, ctx) -> list:
+    from ..gcode import GcodeError, translate
+    from ..job import parse_job  # the job schema holds this module: imported when used
     operations = []
-    for op in translate(block["gcode"], ctx):
+    for op in translate(gcode, ctx):
         try:
             operations.append((op.line, parse_job(op.doc), op.doc))
         except GcodeError:
             raise
         except JobError as err:
             raise GcodeError(op.line, op.doc["kind"], str(err)) from err
-    job.program.operations = operations
+    return operations
 
 
 KIND = KindSchema(

@@ -5,9 +5,10 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
+from cnc_msgs_py.kinds.program import operations_from
 from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_msgs_py.schema import JobError
-from cnc_msgs_py.units import to_rpm
+from cnc_msgs_py.units import to_mm, to_rpm
 
 from cnc_planner.kinematics import Kinematics
 from cnc_planner.kinds.kind import JobKind, ProgressCount, ReportSection
@@ -22,11 +23,22 @@ def kinds() -> dict:
     return KINDS
 
 
+def operations_at(job: SimpleNamespace, machine: Machine, joints: dict[str, float]) -> list:
+    """The program's operations when it begins with the machine's joints at ``joints``: a
+    program that reads where the tool stands before it says so is translated from there (the
+    tool tip in program coordinates with no tool length applied, as at LinuxCNC's G49)."""
+    if not job.program.start_from_machine:
+        return job.program.operations
+    tip = Kinematics(machine, job.setup, None).to_program({j: v for j, v in joints.items() if j != SPINDLE})
+    return operations_from(job, {axis: to_mm(v) for axis, v in tip.items()})
+
+
 def plan_program(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin: Kinematics) -> None:
     """Each operation through its kind's plan, one after the other; an operation's error
     names the program line it starts at."""
     registry = kinds()
-    for index, (line, op, _) in enumerate(job.program.operations):
+    start = {j: builder.position(j) for j in machine.joint_names}
+    for index, (line, op, _) in enumerate(operations_at(job, machine, start)):
         kind = registry[op.kind]
         try:
             if kind.layouts is not None and machine.layout not in kind.layouts:

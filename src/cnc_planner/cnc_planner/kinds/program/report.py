@@ -14,7 +14,7 @@ from cnc_msgs_py.machine import Machine
 from cnc_analysis.recording import Run
 from cnc_analysis.verdict import verdict
 
-from cnc_planner.kinds.program import OPERATION, kinds
+from cnc_planner.kinds.program import OPERATION, kinds, operations_at
 
 
 def _operation_run(run: Run, part: np.ndarray, t0: float, t1: float, doc: dict) -> Run:
@@ -36,7 +36,8 @@ def program_section(run: Run, job: SimpleNamespace, machine: Machine, window: np
     starts = sorted(e["stamp_ns"] / 1e9 for e in run.events
                     if e.get("name") == OPERATION and "stamp_ns" in e and e["stamp_ns"] / 1e9 >= begin - 1e-9)
     sections = []
-    for index, (line, op, doc) in enumerate(job.program.operations):
+    operations = operations_at(job, machine, run.feedback_at(window)) if window.any() else job.program.operations
+    for index, (line, op, doc) in enumerate(operations):
         entry = {"index": index, "line": line, "kind": op.kind}
         if index < len(starts):
             t1 = starts[index + 1] if index + 1 < len(starts) else np.inf

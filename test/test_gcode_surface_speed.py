@@ -69,8 +69,6 @@ def test_a_surface_speed_in_feet_per_minute_is_converted_once():
      "line 5: G71: at constant surface speed the feed is per revolution (G95)"),
     (HEAD + "G96 D2000 S150 M3\nG0 X22 Z7\n(CNC,VIBRATION D=1.5 Q=1.2)\nG1 X18 F0.1\nM2",
      "line 5: G1: (CNC,VIBRATION) is locked to one spindle speed"),
-    (HEAD + "G96 D2000 S150 M3\nG0 X22 Z7\nG70 Q100\nM2\no100 sub\nG1 X10 Z5\no100 endsub",
-     "line 4: G70: the finishing cycle at constant surface speed is not supported yet"),
     (HEAD + "G96 D-5 S150 M3\nM2", "line 2: D-5: the maximum rpm must be >= 0"),
     (HEAD + "G96 D2000 M3\nM2", "line 2: G96: needs S, the surface speed"),
     (HEAD + "M3 S500\nG0 X22 Z7\nF0.15\nG96 G71 Q100 X20 Z5 D0.2 I1.5 R0.5\nM2\no100 sub\nG1 X10 Z5\no100 endsub",
@@ -175,6 +173,29 @@ def test_bad_move_feeds_are_refused_by_field(move, field, reason):
     assert err.value.field == field and reason in err.value.reason
     with pytest.raises(JobError, match=r"^move\[0\]\.feed_per_rev: a feed per revolution needs the spindle turning"):
         parse_job({**FACE, "surface_speed": None, "move": [{"linear": {"x": 1}, "feed_per_rev": 0.1}]})
+
+
+def test_g70_finishes_at_the_surface_speed():
+    """G70 under G96 (G95): its finishing passes are feed moves of one operation at the surface
+    speed, each at the feed per revolution written; planned, the spindle holds 150 m/min within
+    1 % wherever the tip feeds and the cap does not bind."""
+    text = (HEAD + "G96 D3000 S150 M3\nG0 X30 Z4\nF0.1\nG70 Q100 X30 Z4 P2 D0.3\nM5\nM2\n"
+            "o100 sub\nG1 X20 Z2\nG1 Z-20\nG1 X28 Z-24\no100 endsub\n")
+    job = parse_job(_program(text))
+    (_, op, doc), = job.program.operations
+    assert doc["surface_speed"] == {"m_min": 150.0, "max_rpm": 3000.0} and "spindle_rpm" not in doc
+    feeds = [m for m in doc["move"] if "linear" in m]
+    # two passes of the contour after its first point (the approach, as LinuxCNC has it)
+    assert len(feeds) == 2 * 2 and all(m == {"linear": m["linear"], "feed_per_rev": 0.1} for m in feeds)
+    machine = load_machine("lathe")
+    plan = plan_job(job, machine, {"x": 0.03, "z": 0.01})
+    t = np.arange(0.0, plan.duration, 1e-3)
+    p, v, _ = plan.sample(t)
+    x, z, s = (plan.joints.index(j) for j in ("x", "z", "spindle"))
+    radius, _ = Kinematics(machine, op.setup, op.tool).tip_radius_z(p[:, x], p[:, z])
+    figures = judge_surface_speed(t, radius, np.hypot(v[:, x], v[:, z]), v[:, s], op.surface_speed.m_min,
+                                  op.surface_speed.max_rpm, (next(m.feed_per_rev for m in op.move if m.linear),))
+    assert figures["failures"] == [] and figures["max_deviation_pct"] <= 1.0 + 1e-6 and figures["held_s"] > 5.0
 
 
 def test_the_planned_spindle_holds_the_surface_speed_along_x():

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from . import arcs
+from . import arcs, surface_speed
 from .compensation import Segment, offset_path
 from .lathe import _profile, _word
 from .lexer import Block, GcodeError, word_text
@@ -79,7 +79,7 @@ def g70(tr: "Translator", b: Block, used: set[str]) -> None:
         raise GcodeError(b.line, word_text("P", p_word), "the number of passes must be a whole number >= 1")
     if start < 0.0 or end < 0.0:
         raise GcodeError(b.line, "G70", "D and E are distances from the contour (>= 0)")
-    feed = tr._feed_mm_min(b.line, "G70")
+    feed = surface_speed.feed(tr, b.line, "G70")  # per minute, or per revolution at a surface speed
     if blocks is None:
         blocks = tr.executor.expand(str(int(q)), b.line)
     profile = _profile(tr, blocks, (sz, sx), b.line, "G70")
@@ -90,7 +90,7 @@ def g70(tr: "Translator", b: Block, used: set[str]) -> None:
 
     def go(z: float, x: float, feed_move: bool) -> None:
         s.position["z"], s.position["x"] = z, x
-        entry = {"linear": dict(s.position), "feed": feed} if feed_move else {"rapid": dict(s.position)}
+        entry = {"linear": dict(s.position), **feed} if feed_move else {"rapid": dict(s.position)}
         tr._move(b.line, entry)
 
     if (sz, sx) != (s.position.get("z"), s.position.get("x")):

@@ -90,14 +90,11 @@ def check_motion(tr: "Translator", b: Block, g: list[float]) -> None:
                                        "G97 S.. before it, not G96")
     if code in DRILL_CYCLES:
         raise GcodeError(b.line, word, "a drill turns at one rpm: G97 S.. before it, not G96")
-    if code == 70.0:
-        raise GcodeError(b.line, word, "the finishing cycle at constant surface speed is not supported yet: "
-                                       "G97 S.. before it")
-    if code in (1.0, 2.0, 3.0, 71.0, 72.0):
+    if code in (1.0, 2.0, 3.0, 70.0, 71.0, 72.0):
         if tr.vibration is not None:
             raise GcodeError(b.line, word, "(CNC,VIBRATION) is locked to one spindle speed: not at constant surface "
                                            "speed (G97 S.., or (CNC,VIBRATION OFF))")
-        if not s.per_rev and code not in (1.0, 2.0, 3.0):
+        if not s.per_rev and code not in (1.0, 2.0, 3.0, 70.0):  # (G70 finishes in feed moves, as G1)
             raise GcodeError(b.line, word, "at constant surface speed the feed is per revolution (G95): the rpm "
                                            "changes along the cut")
 

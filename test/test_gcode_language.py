@@ -245,10 +245,11 @@ G2 I1 J0 F100
 %
 G0 X99
 """
-    got = moves(text)
-    assert got[:2] == [{"rapid": {"x": 1.0, "y": 0.0, "z": 0.0}}, {"rapid": {"x": 1.0, "y": 1.0, "z": 0.0}}]
-    assert got[-1]["linear"] == {"x": 1.0, "y": 1.0, "z": 0.0}  # back at the start: a full circle, then %
-    assert len(got) > 10
+    assert moves(text) == [{"rapid": {"x": 1.0, "y": 0.0, "z": 0.0}}, {"rapid": {"x": 1.0, "y": 1.0, "z": 0.0}}]
+    circle = next(doc["path"] for doc in ops(text) if doc["kind"] == "path")  # G64 P: run on within P
+    assert circle["chord_tolerance"] == 0.01 and circle["points"][0] == [1.0, 1.0, 0.0]
+    assert circle["points"][-1] == [1.0, 1.0, 0.0]  # back at the start: a full circle, then %
+    assert len(circle["points"]) > 10
 
 
 def test_polar_words_about_the_origin():

@@ -80,6 +80,14 @@ def feed_ends(moves: list[dict]) -> np.ndarray:
     return np.array(rows, dtype=float).reshape(-1, 3)
 
 
+def moves_of(doc: dict) -> list[dict]:
+    """An operation's move entries: a move operation's own, a path operation's points after
+    its first as feed moves (G64 P: the path runs through the programmed ends)."""
+    if "path" in doc:
+        return [{"linear": dict(zip("xyz", point))} for point in doc["path"]["points"][1:]]
+    return doc["move"]
+
+
 def compared(path: Path, recorded_output) -> tuple[str, list, SimpleNamespace, np.ndarray]:
     """A test program's rs274 output (``recorded_output(text)``) and LinuxCNC's cuts in it, its
     job through our front end, and our feed ends: what the oracle tests set side by side."""
@@ -88,7 +96,7 @@ def compared(path: Path, recorded_output) -> tuple[str, list, SimpleNamespace, n
 
     output = recorded_output(path.read_text())
     job = parse_job(job_document(path))
-    return output, cuts(output), job, feed_ends([m for _, _, d in job.program.operations for m in d["move"]])
+    return output, cuts(output), job, feed_ends([m for _, _, d in job.program.operations for m in moves_of(d)])
 
 
 def agree(path: list, ours: np.ndarray) -> bool:

@@ -101,6 +101,7 @@ class Modal:
     per_rev: bool = False  # G95
     motion: float | None = None
     retract_initial: bool = False  # G98
+    path_tolerance: float | None = None  # G64 P: feed moves run on within it (gcode.path_tolerance)
     feed: float | None = None  # as written, in the program's units per min or per rev
     speed: float = 0.0  # S as written: rpm, or under G96 the surface speed
     surface: float | None = None  # G96 in force: the surface speed, m/min (gcode.surface_speed)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from . import arcs, compensation, offsets, saved_state, surface_speed, system
+from . import arcs, compensation, offsets, path_tolerance, saved_state, surface_speed, system
 from .control import Executor
 from .drilling import hole
 from .finishing import g70
@@ -219,8 +219,9 @@ class Translator:
             s.incremental = 91.0 in g
         if 90.1 in g or 91.1 in g:
             s.arc_absolute = 90.1 in g
-        if 64.0 in g:
-            used.update(k for k in "PQ" if k in b.words)  # blending tolerances: read, not applied (docs/gcode.md)
+        for code in (61.0, 61.1, 64.0):
+            if code in g:
+                path_tolerance.set_mode(self, b, used, code)
         if 98.0 in g or 99.0 in g:
             s.retract_initial = 98.0 in g
         if 4.0 in g:
@@ -343,7 +344,8 @@ class Translator:
             feed = None if s.motion == 0.0 else surface_speed.feed(self, b.line, "G1")  # (per rev under G96)
             if compensation.add(self, b.line, feed is None, feed, before, target):
                 return
-            self._move(b.line, {"rapid": target} if feed is None else {"linear": target, **feed})
+            if feed is None or not path_tolerance.add(self, b.line, before, target, feed):
+                self._move(b.line, {"rapid": target} if feed is None else {"linear": target, **feed})
         else:
             self._arc(b, used)
 
@@ -407,11 +409,14 @@ class Translator:
         if compensation.add(self, b.line, False, feed, before, end_pos, center, s.motion == 2.0):
             return
         third = next(k for k in AXES if k not in (a, c))
+        at = before
         for pa, pc, share in arcs.chords(start, end, center, s.motion == 2.0):
             target = {**end_pos, a: pa, c: pc}
             if third in end_pos and third in before:
                 target[third] = before[third] + share * (end_pos[third] - before[third])
-            self._move(b.line, {"linear": target, **feed})
+            if not path_tolerance.add(self, b.line, at, target, feed):
+                self._move(b.line, {"linear": target, **feed})
+            at = target
 
     # ---- operations
     def _common(self, kind: str) -> dict:

@@ -64,7 +64,7 @@ def path_figures(kin: Kinematics, vertices: np.ndarray, command_t: np.ndarray, c
 def path_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray) -> dict:
     """Tip deviation of a path job from path_start to path_end (plus SETTLE_S of feedback)."""
     kin = Kinematics(machine, job.setup, job.tool)
-    events = [e for e in run.events if e.get("job_id") == job.job_id]
+    events = [e for e in run.events if e.get("job_id") == job.job_id] or _inside(run, window)
     starts = [e["stamp_ns"] / 1e9 for e in events if e["name"] == "path_start"]
     ends = [e["stamp_ns"] / 1e9 for e in events if e["name"] == "path_end"]
     if not starts:
@@ -81,6 +81,15 @@ def path_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.nd
                            run.feedback_t[fb_in], run.feedback[fb_in][:, cols], job.path.chord_tolerance)
     completed = bool(ends and ends[-1] >= t0)
     return {**figures, "completed": completed, "path_time_s": t1 - t0, **verdict(figures, completed)}
+
+
+def _inside(run: Run, window: np.ndarray) -> list[dict]:
+    """The events stamped within the window's feedback: a program's path operation (G64 P)
+    carries the program's job id, and its share of the recording is the window."""
+    if not window.any():
+        return []
+    t = run.feedback_t[window]
+    return [e for e in run.events if "stamp_ns" in e and t[0] - 1e-9 <= e["stamp_ns"] / 1e9 <= t[-1] + 1e-9]
 
 
 def verdict(figures: dict, completed: bool) -> dict:

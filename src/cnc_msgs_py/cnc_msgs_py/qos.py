@@ -22,6 +22,7 @@ def _reliable(depth: int, latched: bool = False, lease_s: float | None = None) -
 # one burst lost two of them at depth 10). 100 in flight is far beyond a real cell's queue.
 JOB_GOAL = _reliable(100)
 JOB_CANCEL = _reliable(100)
+JOB_RESUME = _reliable(100)
 # The planner's statuses also carry its liveliness (DDS's own, asserted by the planner's
 # participant): a cell controller on another host is told by DDS when no word came from the
 # planner for PLANNER_LEASE_S (its host down, a cable pulled) and again when it is back.

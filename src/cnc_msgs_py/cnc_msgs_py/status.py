@@ -1,11 +1,14 @@
-"""Status documents (``cnc_status/1``) on job_status, and cancel requests on job_cancel."""
+"""Status documents (``cnc_status/1``) on job_status, cancel requests on job_cancel and
+resume requests (a held program, M0/M1) on job_resume."""
 from __future__ import annotations
 
 import json
 from dataclasses import asdict, dataclass, field
 
 STATUS_SCHEMA = "cnc_status/1"
-STATES = ("accepted", "rejected", "running", "succeeded", "aborted", "canceled")
+STATES = ("accepted", "rejected", "running", "held", "succeeded", "aborted", "canceled")
+# held: a program stands at a pause (M0, M1), its axes at rest, until a job_resume for its
+# job_id arrives (its reason says at which line and how); a cancel ends it as any running job
 FINAL_STATES = ("rejected", "succeeded", "aborted", "canceled")
 
 
@@ -54,3 +57,11 @@ def encode_cancel(job_id: str) -> str:
 
 def decode_cancel(text: str) -> str:
     return text.strip()
+
+
+def encode_resume(job_id: str) -> str:
+    """job_resume carries the bare job_id, as job_cancel does."""
+    return job_id
+
+
+decode_resume = decode_cancel

@@ -3,6 +3,7 @@
 NAMESPACE = "/cnc"
 JOB_GOAL = "job_goal"
 JOB_CANCEL = "job_cancel"
+JOB_RESUME = "job_resume"  # std_msgs/String: the job_id of a held program (M0/M1) to go on
 JOB_STATUS = "job_status"
 JOB_EVENTS = "job_events"
 JOINT_TRAJECTORY = "joint_trajectory"

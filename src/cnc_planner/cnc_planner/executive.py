@@ -20,7 +20,9 @@ from cnc_msgs_py.status import Status
 from cnc_msgs_py.units import NS
 from cnc_servo_bridge.drive import warm_up
 
+from cnc_planner import holding
 from cnc_planner.kinds import progress_count
+from cnc_planner.kinds.program import HOLD, operations_at
 from cnc_planner.lookahead import JobPlan
 from cnc_planner.segments import plan_segments, segment_count
 from cnc_planner.settings import Settings
@@ -53,6 +55,14 @@ class _Job:
     next_status_ns: int = 0
     final: str = ""  # the state to report once the stop has run out (canceled/aborted)
     reason: str = ""
+    # a program's hold points (M0/M1, cnc_planner.holding): the HOLD mark the stream is cut at
+    # (``cut``), then the one it holds at (``held``); plan time before the stream's plan
+    # (``done_s``), when the first stream started, and where the program began
+    cut: dict | None = None
+    held: dict | None = None
+    done_s: float = 0.0
+    first_start_ns: int | None = None
+    origin: dict[str, float] = field(default_factory=dict)
 
 
 class Executive:
@@ -200,8 +210,15 @@ class Executive:
             chunk = stream.next_chunk()
             out.chunks.append(chunk)
             self._events_until(job, chunk.end_ns, out)
+            if stream.done and job.cut is not None and not stream.stopping:
+                stream = self._hold(job)  # served up to its hold point: the hold follows on the grid
         if now_ns >= job.next_status_ns and now_ns < stream.end_ns:  # until the job ends, not until all is served
             out.statuses.append(self._running(job, now_ns))
+            job.next_status_ns = now_ns + self.settings.status_period_ns
+        elif job.held is not None and not stream.stopping and now_ns >= max(job.next_status_ns, stream.start_ns):
+            status = self._running(job, now_ns)  # the feedback has reached the hold
+            status.state, status.phase, status.reason = "held", HOLD, holding.held_reason(job.job_id, job.held)
+            out.statuses.append(status)
             job.next_status_ns = now_ns + self.settings.status_period_ns
         if stream.done and now_ns >= stream.end_ns:
             self._events_until(job, stream.end_ns, out)
@@ -210,9 +227,9 @@ class Executive:
                 job.final, job.reason = "aborted", f"stopped where planning did: {job.plan.error}"
             state = job.final or "succeeded"
             out.statuses.append(Status(job.job_id, state, reason=job.reason, progress=1.0,
-                                       elapsed_s=(stream.end_ns - stream.start_ns) / NS,
-                                       duration_s=job.plan.duration,
-                                       cycle_time_s=(stream.end_ns - stream.start_ns) / NS))
+                                       elapsed_s=(stream.end_ns - job.first_start_ns) / NS,
+                                       duration_s=job.done_s + job.plan.duration,
+                                       cycle_time_s=(stream.end_ns - job.first_start_ns) / NS))
             self.active = None
         return out
 
@@ -222,13 +239,14 @@ class Executive:
         the job starts later instead (chunks and events shifted on the grid, start_delay
         after now). Later chunks continue a stream the bridge has, so they are never moved."""
         job = self.active
-        if job is None or job.stream is None or not out.chunks or out.chunks[0].stamp_ns != job.stream.start_ns:
-            return
+        if job is None or job.stream is None or not out.chunks or out.chunks[0].stamp_ns != job.first_start_ns:
+            return  # (a held program's later streams continue the first on the grid: never moved)
         if out.chunks[0].stamp_ns - bridge_now_ns >= self.settings.min_lead_ns:
             return
         period = self.settings.period_ns
         shift = -(-(bridge_now_ns + self.settings.start_delay_ns) // period) * period - job.stream.start_ns
         job.stream.start_ns += shift
+        job.first_start_ns += shift
         for chunk in out.chunks:
             chunk.stamp_ns += shift
         for event in out.events:
@@ -255,27 +273,84 @@ class Executive:
         period = self.settings.period_ns
         start = -(-(now_ns + self.settings.start_delay_ns) // period) * period
         job.stream = SetpointStream(job.plan, start, period, self.settings.chunk_points)
+        job.first_start_ns, job.origin = start, planned_from
+        self._cut(job)
         job.next_status_ns = now_ns
         self.active = job
 
+    def _cut(self, job: _Job) -> None:
+        """Cut the job's stream at its plan's first hold point (M0/M1), if it has one."""
+        job.cut = job.plan.first_event(HOLD)
+        if job.cut is not None:
+            job.stream.cut_at(job.cut.time)
+
+    def _hold(self, job: _Job) -> SetpointStream:
+        """The stream served up to its hold point: hold there (cnc_planner.holding)."""
+        job.done_s += job.cut.time
+        job.held, job.cut = dict(job.cut.data), None
+        job.stream = holding.hold_after(job.stream, self.settings.chunk_points)
+        return job.stream
+
+    def resume(self, job_id: str, now_ns: int) -> tuple[Output, str]:
+        """A job_resume: the held program goes on ``start_delay`` after now (as a job starts),
+        the hold streamed up to there and the rest planned from the hold's state; or, with
+        nothing changed, why it cannot (one line)."""
+        job = self.active
+        if job is None or job.job_id != job_id or job.held is None or job.final:
+            return Output(), f"cannot resume '{job_id}': {self._not_held(job_id)}"
+        stream, period = job.stream, self.settings.period_ns
+        stream.release(-(-(now_ns + self.settings.start_delay_ns) // period) * period - period)
+        position, speed, start_ns = holding.state_after(stream)
+        operations = operations_at(job.job, self.machine, job.origin)
+        try:
+            plan = JobPlan(holding.resumed_segments(job.job, operations, job.held, self.machine, position, speed),
+                           segment_count(job.job), period / NS)
+        except JobError as err:
+            stream.reopen()
+            return Output(), f"cannot resume '{job_id}': the rest of the program {err}"
+        out = Output()
+        while not stream.done:
+            out.chunks.append(stream.next_chunk())
+        job.plan.close()
+        job.plan, job.held = plan, None
+        job.stream = SetpointStream(plan, start_ns, period, self.settings.chunk_points)
+        self._cut(job)
+        job.next_status_ns = now_ns
+        return out, ""
+
+    def _not_held(self, job_id: str) -> str:
+        job = self.active
+        if job is not None and job.job_id == job_id:
+            return "it is stopping" if job.final else "it is running, not held"
+        if any(queued.job_id == job_id for queued in self.queue):
+            return "it is queued, not held"
+        return "it has ended" if job_id in self.seen_ids else "no such job in this planner"
+
     def _running(self, job: _Job, now_ns: int) -> Status:
-        elapsed = max(0.0, job.stream.plan_time(now_ns))
+        # held: the hold's stream follows the part before it, which the feedback may not have passed yet
+        elapsed = job.done_s + (min(0.0, job.stream.plan_time(now_ns)) if job.held is not None
+                                else max(0.0, job.stream.plan_time(now_ns)))
         while job.passing and job.passing[0].time <= elapsed:
             event = job.passing.popleft()
             job.counts[event.name] = job.counts.get(event.name, 0) + 1
             job.phase = event.name
-        duration = job.plan.expected_duration
+        duration = job.done_s + job.plan.expected_duration
         job.progress = max(job.progress, min(1.0, elapsed / max(duration, 1e-9)))
         return Status(job.job_id, "running", progress=job.progress,
                       phase=job.phase, elapsed_s=elapsed, duration_s=duration, detail=dict(job.counts),
                       count=job.count)
 
     def _events_until(self, job: _Job, t_ns: int, out: Output) -> None:
-        """Publish the job's events up to ``t_ns`` (none once it is stopping)."""
+        """Publish the job's events up to ``t_ns`` (none once it is stopping, none past a hold
+        point the stream is cut at: the rest is planned again on resume)."""
+        if job.held is not None:
+            return
         for event in job.plan.pop_events(job.stream.plan_time(t_ns)):
             if not job.stream.stopping:
                 out.events.append(event_doc(job.job_id, job.stream.start_ns, event))
-                job.passing.append(event)
+                job.passing.append(Event(job.done_s + event.time, event.name, event.data))
+            if event is job.cut:
+                break
 
 
 def out_last_position(stream: SetpointStream) -> np.ndarray:

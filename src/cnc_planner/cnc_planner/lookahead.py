@@ -116,6 +116,11 @@ class JobPlan:
                 q[mask] = part
         return out[0], out[1], out[2]
 
+    def first_event(self, name: str) -> Event | None:
+        """The first event named ``name`` not popped yet, in the segments planned so far."""
+        with self._changed:
+            return next((e for e in self._events if e.name == name), None)
+
     def pop_events(self, until: float) -> list[Event]:
         """Events up to plan time ``until`` (job time), each returned once, in order."""
         out = []

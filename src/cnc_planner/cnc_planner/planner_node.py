@@ -22,7 +22,7 @@ from trajectory_msgs.msg import JointTrajectory
 from cnc_msgs_py import qos, topics, trajectory_bytes
 from cnc_msgs_py.machine import load_machine
 from cnc_msgs_py.parameters import declare, value
-from cnc_msgs_py.status import Status, decode_cancel
+from cnc_msgs_py.status import Status, decode_cancel, decode_resume
 from cnc_msgs_py.units import NS
 
 from cnc_planner.executive import Executive, Output, Settings
@@ -67,6 +67,7 @@ class PlannerNode(Node):
         self.reset_pub = self.create_publisher(String, topics.ALARM_RESET, qos.ALARM_RESET)
         self.create_subscription(String, topics.JOB_GOAL, self.on_goal, qos.JOB_GOAL)
         self.create_subscription(String, topics.JOB_CANCEL, self.on_cancel, qos.JOB_CANCEL)
+        self.create_subscription(String, topics.JOB_RESUME, self.on_resume, qos.JOB_RESUME)
         # joint_states come at 1 kHz (many times that in simulation), and /clock with them;
         # the latest of each is read every feedback_period of wall time and at each bridge
         # report (poll), which is all progress, the stream's lookahead and the watchdog need.
@@ -189,6 +190,14 @@ class PlannerNode(Node):
         self.admit_prepared()
         for status in self.executive.cancel(decode_cancel(msg.data), self.now_ns(), preparing=bool(self.preparing)):
             self.publish_status(status)
+        self.advance(planning=bool(self.preparing))
+
+    def on_resume(self, msg: String) -> None:
+        """A held program goes on; a resume for a job not held changes nothing but the log."""
+        out, error = self.executive.resume(decode_resume(msg.data), self.now_ns())
+        if error:
+            self.get_logger().warning(error)
+        self.publish(out)
         self.advance(planning=bool(self.preparing))
 
     def on_feedback(self, msg: JointState) -> None:

@@ -44,9 +44,10 @@ def segment_count(job: SimpleNamespace) -> int:
     return 1 if cut is None else math.ceil(cut.count(job) / cut.size)
 
 
-def plan_segments(job: SimpleNamespace, machine: Machine,
-                  start_position: dict[str, float] | None = None) -> Iterator[Plan]:
-    """The job's plan, segment by segment, each starting where the previous one ends.
+def plan_segments(job: SimpleNamespace, machine: Machine, start_position: dict[str, float] | None = None,
+                  spindle_speed: float = 0.0) -> Iterator[Plan]:
+    """The job's plan, segment by segment, each starting where the previous one ends; the
+    first with the spindle turning at ``spindle_speed`` (rad/s: a held program resumed).
 
     The whole job is checked before the first segment is yielded.
 
@@ -62,7 +63,7 @@ def plan_segments(job: SimpleNamespace, machine: Machine,
         whole = cut.check_whole(job, machine, kin, start)
         if cut.prepare is not None:
             job = cut.prepare(job, whole)
-    speed = 0.0
+    speed = spindle_speed
     for k in range(count):
         first, last = k == 0, k == count - 1
         part = job if cut is None else cut.part(job, k * cut.size, (k + 1) * cut.size)

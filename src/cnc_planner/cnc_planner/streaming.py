@@ -50,6 +50,7 @@ class SetpointStream:
         self.next_index = 0  # grid index (from start_ns) of the next point to serve
         self._stop_index: int | None = None
         self.stopping = False
+        self.rest_at_end = True  # the last point is at rest (not where a held program's stream is cut)
 
     @property
     def last_index(self) -> int | None:
@@ -92,10 +93,20 @@ class SetpointStream:
         p, v, a = self.plan.sample(ts)
         self.next_index = last + 1
         self.plan.streamed(float(ts[-1]))
-        if self.done:  # the last point of a job is at rest
+        if self.done and self.rest_at_end:  # the last point of a job is at rest
             v[-1] = 0.0
             a[-1] = 0.0
         return Chunk(self.start_ns + first * self.period_ns, self.period_ns, self.plan.joints, p, v, a)
+
+    def cut_at(self, t: float) -> None:
+        """End the stream at plan time ``t`` (on the grid), the motion as it is there: a held
+        program's stream (cnc_planner.holding) is continued by its hold."""
+        self._stop_index = self._index(t)
+        self.rest_at_end = False
+
+    def _bound(self) -> int:
+        """The last grid index a stop may start at."""
+        return self.last_index if self.last_index is not None else self._index(self.plan.duration)
 
     def stop_from(self, t_ns: int, machine: Machine) -> int:
         """Replace the plan from grid instant ``t_ns`` on by a jerk-limited stop.
@@ -103,8 +114,7 @@ class SetpointStream:
         Returns the grid time the stop starts at; the next chunk served starts there, so
         the bridge replaces whatever it had buffered beyond it.
         """
-        bound = self.last_index if self.last_index is not None else self._index(self.plan.duration)
-        index = max(0, min(int(np.ceil((t_ns - self.start_ns) / self.period_ns)), bound))
+        index = max(0, min(int(np.ceil((t_ns - self.start_ns) / self.period_ns)), self._bound()))
         t = index * self.period_ns / NS
         p, v, a = (x[0] for x in self.plan.sample(np.array([t])))
         self.plan.close()
@@ -121,4 +131,5 @@ class SetpointStream:
         self.next_index = index
         self._stop_index = index + int(np.ceil(stop.duration * NS / self.period_ns))
         self.stopping = True
+        self.rest_at_end = True
         return self.start_ns + index * self.period_ns

@@ -40,12 +40,11 @@ G_REFUSED: dict[float, str] = {
 # probing moves stop on a probe's signal: our machine descriptions (and the bridge's drives)
 # have no probe input, so they are the machine's to refuse
 PROBING = (38.2, 38.3, 38.4, 38.5)
-M_GROUPS: dict[float, str] = {2.0: "stop", 30.0: "stop", 3.0: "spindle", 4.0: "spindle", 5.0: "spindle",
+M_GROUPS: dict[float, str] = {0.0: "stop", 1.0: "stop", 2.0: "stop", 30.0: "stop",
+                              3.0: "spindle", 4.0: "spindle", 5.0: "spindle",
                               6.0: "tool change", 61.0: "tool change", 7.0: "mist", 8.0: "flood", 9.0: "coolant",
                               **{code: "modal state" for code in (70.0, 71.0, 72.0, 73.0)}}
 M_REFUSED: dict[float, str] = {
-    0.0: "a program pause cannot be kept in one planned goal",
-    1.0: "an optional stop cannot be kept in one planned goal",
     4.0: "our operations turn the spindle forward (M3)",
 }
 

@@ -34,6 +34,24 @@ class Operation:
     doc: dict
 
 
+@dataclass(frozen=True)
+class Hold:
+    """A program pause (M0, or M1 with the optional stop on): the machine holds, axes at rest,
+    before operation ``before`` (len(operations) when no motion follows it) until resumed."""
+
+    before: int
+    line: int
+    code: str  # "M0" | "M1"
+
+
+class Operations(list):
+    """A program's operations, with its hold points (``holds``, in program order)."""
+
+    def __init__(self, items: tuple | list = (), holds: list[Hold] | None = None) -> None:
+        super().__init__(items)
+        self.holds: list[Hold] = list(holds or [])
+
+
 @dataclass
 class Context:
     """What the program document gives besides the text (mm, as the document writes them)."""
@@ -46,6 +64,7 @@ class Context:
     stock: list | None = None
     start: dict[str, float] = field(default_factory=dict)
     subroutines: dict[str, str] = field(default_factory=dict)  # name -> the text of <name>.ngc
+    optional_stop: bool = True  # M1 holds (AXIS's "Stop at M1" is on by default)
 
 
 def directives(comments: list[str]) -> list[tuple[str, list[str]]]:
@@ -75,7 +94,7 @@ class Translator:
     def __init__(self, ctx: Context) -> None:
         self.ctx = ctx
         self.state = Modal(position=dict(ctx.start))
-        self.operations: list[Operation] = []
+        self.operations = Operations()
         self.current: Operation | None = None
         self.current_key: tuple | None = None
         self.vibration: dict | None = None
@@ -89,7 +108,7 @@ class Translator:
         self.contours: dict[tuple[int, int], list[Block]] = {}  # G71 P Q's N blocks, for a G70 P Q after it
 
     # ---- the program
-    def run(self, text: str) -> list[Operation]:
+    def run(self, text: str) -> Operations:
         self.executor = Executor(text, self.ctx.subroutines, self.params)
         self.executor.on_return = saved_state.on_return(self)
         self.source = self.executor.blocks()
@@ -233,7 +252,21 @@ class Translator:
         else:
             surface_speed.check_motion(self, b, g)
             self._motion(b, g, used)
+        if 0.0 in m or 1.0 in m:  # the stop group runs last, after the line's motion
+            self._pause(b.line, "M0" if 0.0 in m else "M1")
         return 2.0 in m or 30.0 in m
+
+    def _pause(self, line: int, code: str) -> None:
+        """M0, and M1 when the optional stop is on: the operation so far ends (at rest) and
+        the program holds there until resumed; the spindle keeps turning, as LinuxCNC's
+        PROGRAM_STOP leaves it."""
+        if code == "M1" and not self.ctx.optional_stop:
+            return
+        if self.comp.on:
+            raise GcodeError(line, code, "a pause with cutter compensation on (G41/G42): its last move is not "
+                                         "known before the next one; give G40 first")
+        self._flush()
+        self.operations.holds.append(Hold(len(self.operations), line, code))
 
     def _g10(self, b: Block, used: set[str]) -> None:
         """G10 L1 P<tool> Z R: a tool's length and radius into the table; G10 L10 P<tool> Z: its
@@ -482,6 +515,7 @@ class Translator:
             g71(self, b, used)
 
 
-def translate(text: str, ctx: Context) -> list[Operation]:
-    """A program's operations (job documents, mm), or GcodeError at its first bad line."""
+def translate(text: str, ctx: Context) -> Operations:
+    """A program's operations (job documents, mm) and hold points, or GcodeError at its first
+    bad line."""
     return Translator(ctx).run(text)

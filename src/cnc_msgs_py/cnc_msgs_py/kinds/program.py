@@ -9,6 +9,7 @@ other kinds' jobs. The block::
       start: {x: 7, z: 4}                 # where the tool stands when the program begins
                                           # (else where the machine stands, if the program asks)
       subroutines: [{name: peck, gcode: "o<peck> sub ... o<peck> endsub"}]   # <name>.ngc files
+      optional_stop: true                 # M1 holds as M0 does (AXIS's default); false: M1 is skipped
 
 Without ``tool_table`` the machine's own (``config/machines/<machine>.tbl``) holds the tools.
 The program is translated and every operation validated as its kind's job when the document
@@ -18,7 +19,7 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
-from ..schema import JobError, List, Num, Obj, Str
+from ..schema import Bool, JobError, List, Num, Obj, Str
 from .kind import MAX_LIST, KindSchema
 from .turn import OUTLINE
 
@@ -36,6 +37,7 @@ PROGRAM = Obj({
     "stock": List(OUTLINE.item, min_len=2, max_len=MAX_LIST, default=None),  # as turn.stock
     "start": Obj({k: Num("mm", default=None) for k in START_AXES}, default=None),
     "subroutines": List(Obj({"name": Str(pattern=r"[A-Za-z0-9_.-]{1,64}"), "gcode": Str()}), max_len=1000, default=None),
+    "optional_stop": Bool(default=True),
 }, default=None)
 
 
@@ -47,7 +49,8 @@ def check(job: SimpleNamespace) -> None:
 
 def translate_program(doc: dict, job: SimpleNamespace) -> None:
     """The program's operations in ``job.program.operations``: a list of (line, job in SI,
-    its document in mm); any error is ``line N: <word>: <reason>``.
+    its document in mm), its hold points (M0/M1) in ``.holds``; any error is
+    ``line N: <word>: <reason>``.
 
     Without ``start``, a program that reads where the tool stands before it says so (a G91
     move, G92, a cycle from the tool's place) starts where the machine stands, as LinuxCNC's
@@ -69,7 +72,8 @@ def translate_program(doc: dict, job: SimpleNamespace) -> None:
                   work_offsets={**machine_work_offsets(job.machine),
                                 **{k: v for k, v in (block.get("work_offsets") or {}).items() if v is not None}},
                   stock=block.get("stock"), start=start,
-                  subroutines={s["name"].lower(): s["gcode"] for s in block.get("subroutines") or []})
+                  subroutines={s["name"].lower(): s["gcode"] for s in block.get("subroutines") or []},
+                  optional_stop=block.get("optional_stop", True))
     job.program.context, job.program.start_from_machine = ctx, False
     try:
         job.program.operations = _operations(block["gcode"], ctx)
@@ -83,16 +87,18 @@ def translate_program(doc: dict, job: SimpleNamespace) -> None:
 
 def operations_from(job: SimpleNamespace, start_mm: dict[str, float]) -> list:
     """A ``start_from_machine`` program's operations from ``start_mm`` (program coordinates,
-    mm: where the machine stands when it begins)."""
+    mm: where the machine stands when it begins), with its hold points (``.holds``)."""
     from dataclasses import replace
     return _operations(job.program.gcode, replace(job.program.context, start=dict(start_mm)))
 
 
 def _operations(gcode: str, ctx) -> list:
     from ..gcode import GcodeError, translate
+    from ..gcode.translate import Operations
     from ..job import parse_job  # the job schema holds this module: imported when used
-    operations = []
-    for op in translate(gcode, ctx):
+    translated = translate(gcode, ctx)
+    operations = Operations(holds=translated.holds)  # M0/M1: the planner holds there (cnc_planner.holding)
+    for op in translated:
         try:
             operations.append((op.line, parse_job(op.doc), op.doc))
         except GcodeError:

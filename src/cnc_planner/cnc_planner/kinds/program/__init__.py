@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
+from cnc_msgs_py.gcode.translate import Hold
 from cnc_msgs_py.kinds.program import operations_from
 from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_msgs_py.schema import JobError
@@ -15,6 +16,7 @@ from cnc_planner.kinds.kind import JobKind, ProgressCount, ReportSection
 from cnc_planner.motion.builder import PlanBuilder
 
 OPERATION = "operation"  # the job_events mark at each operation's start
+HOLD = "hold"  # the job_events mark at a hold point (M0/M1): line, code, hold (its index), before (the next operation)
 
 
 def kinds() -> dict:
@@ -38,7 +40,12 @@ def plan_program(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, k
     names the program line it starts at."""
     registry = kinds()
     start = {j: builder.position(j) for j in machine.joint_names}
-    for index, (line, op, _) in enumerate(operations_at(job, machine, start)):
+    operations = operations_at(job, machine, start)
+    holds = list(enumerate(getattr(operations, "holds", ())))
+    for index, (line, op, _) in enumerate(operations):
+        for k, hold in holds:
+            if hold.before == index:
+                mark_hold(builder, hold, k)
         kind = registry[op.kind]
         try:
             if kind.layouts is not None and machine.layout not in kind.layouts:
@@ -51,6 +58,22 @@ def plan_program(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, k
             kind.plan(op, machine, builder, Kinematics(machine, op.setup, op.tool))
         except JobError as err:
             raise JobError(f"line {line}", f"{op.kind}: {err}") from err
+    for k, hold in holds:
+        if hold.before == len(operations):
+            mark_hold(builder, hold, k)
+
+
+def mark_hold(builder: PlanBuilder, hold: Hold, index: int) -> None:
+    """Mark hold point ``index`` (M0/M1, a zero-length hold in the plan) where every joint has
+    settled and the spindle's last change is done; the axes stand until then, so the next
+    operation starts after it. Over topics the executive holds there (cnc_planner.holding)."""
+    for timeline in builder.timelines.values():
+        timeline.flush()
+    at = max(timeline.end_time for timeline in builder.timelines.values())
+    for joint, timeline in builder.timelines.items():
+        if joint != SPINDLE and timeline.end_time < at:
+            timeline.add_hold(timeline.end_time, at - timeline.end_time)
+    builder.event(at, HOLD, line=hold.line, code=hold.code, hold=index, before=hold.before)
 
 
 KIND = JobKind(

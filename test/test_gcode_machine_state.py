@@ -81,9 +81,12 @@ def test_g55_comes_from_the_machines_var_file_and_the_program_overrides_it(tmp_p
         parse_job(program(gcode))
 
 
-def test_probing_is_refused_for_the_machines_missing_probe():
-    with pytest.raises(JobError, match=r"^line 2: G38.2: machine 'mill3' has no probe input"):
-        parse_job(program("G21 G90 G0 X0 Y0 Z5\nG38.2 Z-10 F100\nM2"))
+@pytest.mark.parametrize("line,reason", [("G38.2 Z-10 F100", "G38.2: machine 'mill3' has no probe input"),
+                                         ("M64 P0", "M64: machine 'mill3' has no digital or analog I/O"),
+                                         ("M66 P0 L3 Q5", "M66: machine 'mill3' has no digital or analog I/O")])
+def test_probing_and_io_are_refused_for_what_the_machine_lacks(line, reason):
+    with pytest.raises(JobError, match=rf"^line 2: {reason}"):
+        parse_job(program(f"G21 G90 G0 X0 Y0 Z5\n{line}\nM2"))
 
 
 @pytest.mark.parametrize("text", ["G21 G91 G1 X1 F60", "G21 G92 X1", "G21 G0 X#<_z>", "G21 G2 X1 Y1 R1 F60",

@@ -40,6 +40,8 @@ G_REFUSED: dict[float, str] = {
 # probing moves stop on a probe's signal: our machine descriptions (and the bridge's drives)
 # have no probe input, so they are the machine's to refuse
 PROBING = (38.2, 38.3, 38.4, 38.5)
+# digital and analog I/O (M62-M65 outputs, M66 wait on an input, M67/M68 analog outputs): likewise
+IO = (62.0, 63.0, 64.0, 65.0, 66.0, 67.0, 68.0)
 M_GROUPS: dict[float, str] = {0.0: "stop", 1.0: "stop", 2.0: "stop", 30.0: "stop",
                               3.0: "spindle", 4.0: "spindle", 5.0: "spindle",
                               6.0: "tool change", 61.0: "tool change", 7.0: "mist", 8.0: "flood", 9.0: "coolant",
@@ -62,6 +64,9 @@ def check_groups(block: Block, machine: str = "") -> None:
             if letter == "G" and code in PROBING:
                 raise GcodeError(block.line, word, f"machine '{machine}' has no probe input to stop a probing move"
                                  if machine else "probing needs a machine with a probe input")
+            if letter == "M" and code in IO:
+                raise GcodeError(block.line, word, f"machine '{machine}' has no digital or analog I/O"
+                                 if machine else "I/O needs a machine with inputs and outputs")
             group = groups.get(code)
             if group is None:
                 raise GcodeError(block.line, word, "not supported by this front end")

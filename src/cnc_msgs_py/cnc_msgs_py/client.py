@@ -14,6 +14,9 @@ nav2_simple_commander (in snake_case, without a polling loop or thread of its ow
     final = client.wait(job_id, timeout=120.0)              # spins the node until final
     print(final["state"], final["cycle_time_s"])
 
+A program that pauses (M0, M1) is ``held`` until resumed: ``wait(job_id, held=True)`` returns
+at the hold too (its status's reason says at which line), ``resume(job_id)`` goes on.
+
 ``bridge_transition("deactivate")`` (a controlled stop), ``("activate")`` and ``bridge_state()``
 drive the bridge's standard lifecycle services.
 
@@ -45,7 +48,7 @@ from . import topics
 from .bridge_lifecycle import BridgeLifecycle, CncClientError
 from .job import load_job
 from .liveliness import AliveWriters
-from .status import FINAL_STATES, Status, encode_cancel
+from .status import FINAL_STATES, Status, encode_cancel, encode_resume
 
 CONNECT_TIMEOUT_S = 10.0  # how long submit waits for a planner to listen on job_goal
 RESEND_S = 2.0  # a goal no status has answered within this is sent again (see submit)
@@ -74,15 +77,18 @@ class CncClient:
         self.namespace = "/" + namespace.strip("/") if namespace.strip("/") else ""
         self.goal_topic = f"{self.namespace}/{topics.JOB_GOAL}"
         self.cancel_topic = f"{self.namespace}/{topics.JOB_CANCEL}"
+        self.resume_topic = f"{self.namespace}/{topics.JOB_RESUME}"
         self.status_topic = f"{self.namespace}/{topics.JOB_STATUS}"
         self._string = String
         self._goal_pub = node.create_publisher(String, self.goal_topic, qos.JOB_GOAL)
         self._cancel_pub = node.create_publisher(String, self.cancel_topic, qos.JOB_CANCEL)
+        self._resume_pub = node.create_publisher(String, self.resume_topic, qos.JOB_RESUME)
         self._status_sub = node.create_subscription(
             String, self.status_topic, self._on_status, qos.JOB_STATUS,
             event_callbacks=SubscriptionEventCallbacks(liveliness=self._on_liveliness))
         self._statuses: dict[str, dict] = {}  # latest status per job submitted here
         self._submitted: set[str] = set()
+        self._resumed: dict[str, int] = {}  # job_id -> the holds it had passed when last resumed
         self._unanswered: dict[str, tuple[str, float]] = {}  # job_id -> (goal text, monotonic time sent)
         node.create_timer(RESEND_S / 4, self._resend_unanswered, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self._others: dict[str, dict] = {}  # latest status of the other jobs heard (for follow)
@@ -116,18 +122,20 @@ class CncClient:
         self._goal_pub.publish(self._string(data=text))
         return job_id
 
-    def wait(self, job_id: str, timeout: float | None = None) -> dict:
-        """Spin until the job is final (rejected, succeeded, aborted, canceled); its status.
+    def wait(self, job_id: str, timeout: float | None = None, held: bool = False) -> dict:
+        """Spin until the job is final (rejected, succeeded, aborted, canceled), or with
+        ``held`` also until it is held at a program pause (M0/M1); its status.
 
         Raises:
-            TimeoutError: the job was not final within ``timeout`` seconds.
+            TimeoutError: the job was not final (nor held) within ``timeout`` seconds.
         """
         deadline = None if timeout is None else time.monotonic() + timeout
-        while not self._final(job_id):
+        while not self._final(job_id) and not (held and self._state(job_id) == "held"):
             left = None if deadline is None else deadline - time.monotonic()
             if left is not None and left <= 0:
                 last = self._statuses.get(job_id)
                 seen = f" (last seen: {last['state']}, {100 * last.get('progress', 0):.0f}%)" if last else ""
+                seen += f": {last['reason']}" if last and last["state"] == "held" else ""
                 lost = ", the planner unreachable" if self._reachable is False else ""
                 raise TimeoutError(f"job '{job_id}' did not end within {timeout:g} s{seen}{lost}")
             self._spin_once(0.1 if left is None else min(0.1, left))
@@ -139,6 +147,29 @@ class CncClient:
         while self._cancel_pub.get_subscription_count() == 0 and time.monotonic() < deadline:
             self._spin_once(0.05)
         self._cancel_pub.publish(self._string(data=encode_cancel(job_id)))
+
+    def resume(self, job_id: str) -> None:
+        """Resume a program held at a pause (M0/M1): its job_id on job_resume. The statuses
+        that follow are new (``wait`` waits for them, not the hold's).
+
+        Raises:
+            CncClientError: no held status of the job has been heard here (one line; nothing
+                is sent). A job another controller sent is heard once ``follow``-ed.
+        """
+        state = self._state(job_id)
+        if state != "held":
+            heard = f"its latest status: {state}" if state else "no status heard for it"
+            raise CncClientError(f"job '{job_id}' is not held ({heard}); only a program held at M0/M1 resumes")
+        deadline = time.monotonic() + 2.0
+        while self._resume_pub.get_subscription_count() == 0 and time.monotonic() < deadline:
+            self._spin_once(0.05)
+        # this hold's statuses still on their way are old news (a later hold has passed one more mark)
+        self._resumed[job_id] = self._statuses.pop(job_id)["detail"].get("hold", 0)
+        self._resume_pub.publish(self._string(data=encode_resume(job_id)))
+
+    def _state(self, job_id: str) -> str:
+        latest = self._statuses.get(job_id)
+        return latest["state"] if latest is not None else ""
 
     def status(self, job_id: str) -> dict | None:
         """The latest status received for a job submitted here, or None (does not spin)."""
@@ -159,6 +190,15 @@ class CncClient:
             self._statuses[job_id] = heard
             for callback in self._callbacks:
                 callback(dict(heard))
+
+    def hear(self, job_id: str, timeout: float) -> dict | None:
+        """``follow`` the job and spin up to ``timeout`` s until a status of it is heard (the
+        planner keeps the latest statuses on job_status); that status, or None."""
+        self.follow(job_id)
+        deadline = time.monotonic() + timeout
+        while job_id not in self._statuses and time.monotonic() < deadline:
+            self._spin_once(0.05)
+        return self.status(job_id)
 
     @property
     def reachable(self) -> bool | None:
@@ -252,6 +292,8 @@ class CncClient:
         self._unanswered.pop(job_id, None)
         if self._final(job_id):
             return  # a job is final once; later copies (re-delivered latched ones) change nothing
+        if doc["state"] == "held" and doc["detail"].get("hold", 0) <= self._resumed.get(job_id, -1):
+            return  # the hold resumed already
         self._statuses[job_id] = dict(doc)
         for callback in self._callbacks:
             callback(dict(doc))

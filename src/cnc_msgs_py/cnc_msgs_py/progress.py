@@ -76,9 +76,15 @@ class Progress:
         self._last_time: float | None = None
         self._last_step = -1  # the 10 % step of the last plain line
         self._last_progress = -1.0
+        self._held = ""  # the hold last shown: a held job's status comes every 0.5 s, shown once
 
     def __call__(self, status: dict) -> None:
-        if status.get("state") != "running":
+        if status.get("state") == "held":
+            if status.get("reason") != self._held:
+                self.close()
+                self._line(status_text(status))
+                self._held = status.get("reason", "")
+        elif status.get("state") != "running":
             self.close()
             self._line(status_text(status))
         elif self.tty:

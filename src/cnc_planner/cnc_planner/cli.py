@@ -49,7 +49,12 @@ def run_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--namespace", default=NAMESPACE, help=f"the machine's namespace (default {NAMESPACE})")
     parser.add_argument("--plant", type=Path, help="plant file: the bridge emulates drives that differ from the "
                                                    "description (docs/machines.md); the planner never reads it")
+    parser.add_argument("--resume-after", type=float, metavar="S",
+                        help="a program held at M0/M1 resumes after S s of machine (sim) time; without it the "
+                             "job is canceled at its first hold")
     args = parser.parse_args(argv)
+    if args.resume_after is not None and not args.resume_after >= 0:
+        return _fail("cnc-run", f"--resume-after: must be >= 0 s, got {args.resume_after:g}")
     from cnc_msgs_py.gcode.document import job_document
     from cnc_msgs_py.job import job_id_of
     from cnc_msgs_py.machine import MachineError, load_machine
@@ -97,7 +102,8 @@ def run_main(argv: list[str] | None = None) -> int:
         progress = Progress()
         try:
             status = run_job(json.dumps(doc), job_id_of(doc), machine.name, out / "bag", timeout=args.timeout,
-                             progress=progress, namespace=args.namespace, plant=plant, nodes=nodes)
+                             progress=progress, namespace=args.namespace, plant=plant, nodes=nodes,
+                             resume_after=args.resume_after)
         except RunError as err:
             if beside is not None:
                 beside.cancel()

@@ -154,6 +154,7 @@ class Session:
         self.executor = EventsExecutor()
         self.executor.add_node(self.recorder)
         self.cancel_pub = self.recorder.create_publisher(String, topics.JOB_CANCEL, qos.JOB_CANCEL)
+        self.resume_pub = self.recorder.create_publisher(String, topics.JOB_RESUME, qos.JOB_RESUME)
         self.fault_pub = self.recorder.create_publisher(String, topics.INJECT_FAULT, qos.INJECT_FAULT)
         self._shown = 0
 
@@ -216,6 +217,15 @@ class Session:
     def cancel(self, job_id: str) -> None:
         self.cancel_pub.publish(String(data=job_id))
 
+    def resume(self, job_id: str) -> None:
+        """Resume a program held at M0/M1 (job_resume)."""
+        self.resume_pub.publish(String(data=job_id))
+
+    def held(self, job_id: str) -> dict | None:
+        """The job's latest status if it says the job is held (M0/M1), else None."""
+        latest = next((s for s in reversed(self.recorder.statuses) if s["job_id"] == job_id), None)
+        return latest if latest is not None and latest["state"] == "held" else None
+
     def inject(self, joint: str, offset: float) -> None:
         """Displace one axis of the emulated drives (fault injection)."""
         self.fault_pub.publish(String(data=json.dumps({"joint": joint, "offset": offset})))
@@ -223,10 +233,11 @@ class Session:
     def final_status(self, job_id: str) -> dict | None:
         return self.recorder.finals.get(job_id)
 
-    def wait(self, job_id: str, timeout: float) -> dict:
-        """Spin until the job is final; returns its final status document."""
-        self.spin_until(lambda: self.final_status(job_id) is not None, timeout,
-                        f"job '{job_id}' did not end within {timeout:.0f} s")
+    def wait(self, job_id: str, timeout: float, pauses: Pauses | None = None) -> dict:
+        """Spin until the job is final; returns its final status document. ``pauses`` acts
+        on the job's holds (M0/M1); without, a held job waits for a resume (``resume``)."""
+        self.spin_until(lambda: self.final_status(job_id) is not None or (pauses is not None and pauses.check()),
+                        timeout, f"job '{job_id}' did not end within {timeout:.0f} s")
         return self.final_status(job_id)
 
     def settle(self, status: dict, seconds: float = SETTLE_S) -> None:
@@ -263,12 +274,43 @@ class Session:
         self.bag.close()
 
 
+class Pauses:
+    """What cnc-run does when its job holds at a program pause (M0/M1), having no operator to
+    press cycle start: resume it ``resume_after`` s of machine time later (each hold once), or
+    cancel it (None), saying so."""
+
+    def __init__(self, session: Session, job_id: str, resume_after: float | None) -> None:
+        self.session, self.job_id, self.resume_after = session, job_id, resume_after
+        self.handled = -1  # the holds passed (status detail) at the last one acted on
+        self.since_ns: int | None = None  # machine time the current hold was first heard
+
+    def check(self) -> bool:
+        """Act on a hold if one is due; never ends the wait (False)."""
+        held = self.session.held(self.job_id)
+        if held is None or held["detail"].get("hold", 0) <= self.handled:
+            return False
+        if self.resume_after is None:
+            print(f"cnc-run: {self.job_id} {held['reason'].split(':')[0]}: canceled, as cnc-run resumes a held "
+                  f"program only with --resume-after S", flush=True)
+            self.session.cancel(self.job_id)
+        else:
+            self.since_ns = held["stamp_ns"] if self.since_ns is None else self.since_ns
+            if self.session.recorder.feedback_ns < self.since_ns + round(self.resume_after * NS):
+                return False
+            print(f"cnc-run: {self.job_id} resumed after {self.resume_after:g} s held (--resume-after)", flush=True)
+            self.session.resume(self.job_id)
+        self.handled, self.since_ns = held["detail"].get("hold", 0), None
+        return False
+
+
 def run_job(text: str, job_id: str, machine: str, bag_dir: Path, *, timeout: float = 900.0,
             progress: Callable[[dict], None] | None = None, namespace: str = topics.NAMESPACE,
-            plant: str = "", nodes: Nodes | None = None) -> dict:
+            plant: str = "", nodes: Nodes | None = None, resume_after: float | None = None) -> dict:
     """Run one job document (JSON text) through both nodes, recording to ``bag_dir``; the
     bridge emulates ``plant`` (a plant file) if given. ``nodes``: the nodes if already
     started (with that machine, namespace and plant), which the run stops at its end.
+    ``resume_after``: a program held at M0/M1 goes on after that many s of machine time
+    (None: it is canceled at its first hold).
 
     Returns the job's final status document.
 
@@ -279,7 +321,7 @@ def run_job(text: str, job_id: str, machine: str, bag_dir: Path, *, timeout: flo
     with Session(machine, bag_dir, progress=progress, namespace=namespace, bridge_params=bridge,
                  nodes=nodes) as session:
         session.submit(text)
-        status = session.wait(job_id, timeout)
+        status = session.wait(job_id, timeout, Pauses(session, job_id, resume_after))
         if status["state"] != "rejected":
             session.settle(status)
         return status

@@ -14,7 +14,7 @@ from cnc_msgs_py.machine import Machine
 from cnc_analysis.recording import Run
 from cnc_analysis.verdict import verdict
 
-from cnc_planner.kinds.program import OPERATION, kinds, operations_at
+from cnc_planner.kinds.program import HOLD, OPERATION, kinds, operations_at
 
 
 def _operation_run(run: Run, part: np.ndarray, t0: float, t1: float, doc: dict) -> Run:
@@ -29,18 +29,24 @@ def _operation_run(run: Run, part: np.ndarray, t0: float, t1: float, doc: dict) 
 
 
 def program_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray) -> dict:
-    """One section per operation, judged by its kind's own judge on its share of the feedback."""
+    """One section per operation, judged by its kind's own judge on its share of the feedback:
+    from its start to the next operation's or a hold point's (M0/M1: the machine stood there,
+    held, until resumed), whichever comes first."""
     registry = kinds()
     t = run.feedback_t
     begin = t[window][0] if window.any() else 0.0
-    starts = sorted(e["stamp_ns"] / 1e9 for e in run.events
-                    if e.get("name") == OPERATION and "stamp_ns" in e and e["stamp_ns"] / 1e9 >= begin - 1e-9)
+
+    def marks(name: str) -> list[float]:
+        return sorted(e["stamp_ns"] / 1e9 for e in run.events
+                      if e.get("name") == name and "stamp_ns" in e and e["stamp_ns"] / 1e9 >= begin - 1e-9)
+    starts, holds = marks(OPERATION), marks(HOLD)
     sections = []
     operations = operations_at(job, machine, run.feedback_at(window)) if window.any() else job.program.operations
     for index, (line, op, doc) in enumerate(operations):
         entry = {"index": index, "line": line, "kind": op.kind}
         if index < len(starts):
             t1 = starts[index + 1] if index + 1 < len(starts) else np.inf
+            t1 = min([t1] + [h for h in holds if h > starts[index] + 1e-9])
             part = window & (t >= starts[index] - 1e-9) & (t < t1 - 1e-9)
             entry["duration_s"] = float(t[part][-1] - t[part][0]) if part.any() else 0.0
             section = registry[op.kind].report

@@ -202,6 +202,7 @@ def plan_main(argv: list[str] | None = None) -> int:
     from cnc_msgs_py.machine import MachineError, load_machine
     from cnc_msgs_py.schema import JobError
 
+    from cnc_planner.kinds.program import HOLD
     from cnc_planner.planning import plan_job
 
     keep_freed_memory()  # as the planner node does: the plan's arrays reuse freed memory
@@ -223,6 +224,9 @@ def plan_main(argv: list[str] | None = None) -> int:
         "joints": list(plan.joints), "events": [{"t": e.time, "name": e.name, **e.data} for e in plan.events],
     })
     print(f"cnc-plan: {job.job_id}: {plan.duration:.3f} s, {len(t)} setpoints -> {args.out}")
+    for hold in (e for e in plan.events if e.name == HOLD):
+        print(f"  hold at line {hold.data['line']} ({hold.data['code']}) at {hold.time:.3f} s: planned as zero length; "
+              f"over topics the program waits there for job_resume")
     return 0
 
 

@@ -277,11 +277,12 @@ def words(tr: "Translator", b: Block, used: set[str], g: list[float]) -> None:
 
 
 def check_line(tr: "Translator", b: Block, g: list[float], m: list[float]) -> None:
-    """What LinuxCNC refuses while compensation is on: tool changes, G53, offset changes,
-    canned cycles (their moves are not compensated)."""
+    """What LinuxCNC refuses while compensation is on: tool changes, G53, G28/G30, splines,
+    offset changes, canned cycles (their moves are not compensated)."""
     if not tr.comp.on:
         return
     refused = [(m, (6.0, 61.0), "M", "change tools"), (g, (53.0,), "G", "use G53"),
+               (g, (28.0, 30.0), "G", "use G28 or G30"), (g, (5.1,), "G", "convert a spline (G5.1)"),
                (g, (10.0,), "G", "set offsets or tool data (G10)"),
                (g, (52.0, 92.0, 92.1, 92.2, 92.3), "G", "change axis offsets"),
                (g, (54.0, 55.0, 56.0, 57.0, 58.0, 59.0, 59.1, 59.2, 59.3), "G", "change coordinate systems"),

@@ -9,11 +9,12 @@ from dataclasses import dataclass, field
 
 from .lexer import Block, GcodeError, word_text
 
-MOTION = {0.0, 1.0, 2.0, 3.0, 70.0, 71.0, 72.0, 73.0, 76.0, 80.0, 81.0, 82.0, 83.0}
+MOTION = {0.0, 1.0, 2.0, 3.0, 5.1, 70.0, 71.0, 72.0, 73.0, 76.0, 80.0, 81.0, 82.0, 83.0}
 DRILL_CYCLES = {73.0, 81.0, 82.0, 83.0}
 G_GROUPS: dict[float, str] = {
     **{g: "motion" for g in MOTION},
     4.0: "non-modal", 10.0: "non-modal", 52.0: "non-modal", 53.0: "non-modal",
+    28.0: "non-modal", 28.1: "non-modal", 30.0: "non-modal", 30.1: "non-modal",
     92.0: "non-modal", 92.1: "non-modal", 92.2: "non-modal", 92.3: "non-modal",
     17.0: "plane", 18.0: "plane", 19.0: "plane",
     7.0: "lathe diameter", 8.0: "lathe diameter",

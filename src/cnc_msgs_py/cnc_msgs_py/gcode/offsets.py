@@ -234,26 +234,42 @@ def g92(tr: "Translator", b: Block, used: set[str], code: float) -> None:
     _keeping_the_tool(tr, change)
 
 
-def g53_target(tr: "Translator", b: Block, used: set[str]) -> dict[str, float]:
-    """A G53 line's end in program coordinates: its X Y Z are machine coordinates (the
-    joints: the table frame plus the applied tool length along the tool axis), the others
-    stay where they are. Only on layouts whose linear joints read the table frame."""
-    from ..machine import MachineError, load_machine  # read only when a program uses G53
-    s = tr.state
+def _machine_shift(tr: "Translator", line: int, word: str) -> dict[str, float]:
+    """Machine less program coordinates, per axis, for ``word``: the system's origin, the G92
+    offset and along the tool axis the applied tool length. Only on layouts whose linear
+    joints read the table frame, and not under a rotated system."""
+    from ..machine import MachineError, load_machine  # read only when a program uses machine coordinates
     try:
         layout = load_machine(tr.ctx.machine).layout
     except MachineError as err:
-        raise GcodeError(b.line, "G53", str(err)) from None
+        raise GcodeError(line, word, str(err)) from None
     if layout not in TOOL_AXIS:
-        raise GcodeError(b.line, "G53", f"machine {tr.ctx.machine} (layout {layout}) has no fixed frame for "
-                                        "machine coordinates: its rotary axes carry the setup")
-    sys = tr.offsets.system(s.work_offset)
+        raise GcodeError(line, word, f"machine {tr.ctx.machine} (layout {layout}) has no fixed frame for "
+                                     "machine coordinates: its rotary axes carry the setup")
+    sys = tr.offsets.system(tr.state.work_offset)
     if any(sys.rotation_deg):
-        raise GcodeError(b.line, "G53", "machine coordinates under a rotated coordinate system are not supported")
-    target = dict(s.position)
-    for a, value in _values(tr, b, used).items():
-        i = AXES.index(a)
-        length = tr.applied_length() if i == TOOL_AXIS[layout] else 0.0
-        target[a] = value - length - sys.origin[i] - tr.offsets.g92[i]
+        raise GcodeError(line, word, "machine coordinates under a rotated coordinate system are not supported")
+    return {a: sys.origin[i] + tr.offsets.g92[i] + (tr.applied_length() if i == TOOL_AXIS[layout] else 0.0)
+            for i, a in enumerate(AXES)}
+
+
+def from_machine(tr: "Translator", line: int, word: str, machine: dict[str, float]) -> dict[str, float]:
+    """Some axes' machine coordinates (the joints: the table frame plus the applied tool
+    length along the tool axis) in program coordinates."""
+    shift = _machine_shift(tr, line, word)
+    return {a: v - shift[a] for a, v in machine.items()}
+
+
+def to_machine(tr: "Translator", line: int, word: str) -> dict[str, float]:
+    """The known axes of the current position in machine coordinates."""
+    shift = _machine_shift(tr, line, word)
+    return {a: v + shift[a] for a, v in tr.state.position.items()}
+
+
+def g53_target(tr: "Translator", b: Block, used: set[str]) -> dict[str, float]:
+    """A G53 line's end in program coordinates: its X Y Z are machine coordinates, the others
+    stay where they are. Only on layouts whose linear joints read the table frame."""
+    s = tr.state
+    target = {**s.position, **from_machine(tr, b.line, "G53", _values(tr, b, used))}
     s.position = dict(target)
     return target

@@ -3,9 +3,11 @@
 - ``#1``-``#5399``: numbered, 0 until written; ``#1``-``#30`` are a subroutine call's
   arguments (saved on the call, restored on its return), the rest global.
 - ``#5161``-``#5390`` (G28/G30 homes, G92 and G54..G59.3 offsets) LinuxCNC keeps in its var
-  file between runs. Here the homes read 0, ``#5210``-``#5390`` the G92 offset and the
-  coordinate systems as the job and the program's G10 L2/L20, G92 and G52 set them
-  (``offsets``); writing any of them is refused: those words set them, not a var file.
+  file between runs. Here ``#5161``-``#5169`` and ``#5181``-``#5189`` read the G28 and G30
+  positions (``homes``: the machine's home until G28.1/G30.1 store one), ``#5210``-``#5390``
+  the G92 offset and the coordinate systems as the job and the program's G10 L2/L20, G92
+  and G52 set them (``offsets``); writing any of them is refused: those words set them,
+  not a var file.
 - ``#5220`` the work offset in force (1 = G54), ``#5400`` the tool in the spindle,
   ``#5401``-``#5409`` its applied offsets (Z = the G43 length), ``#5410`` its diameter,
   ``#5420``-``#5428`` the current position (X Y Z A B C U V W), program coordinates and
@@ -26,6 +28,7 @@ MAX_NUMBER = 5602  # LinuxCNC's RS274NGC_MAX_PARAMETERS: valid numbers are below
 ARGUMENTS = 30
 VAR_FILE = range(5161, 5391)
 OFFSETS = range(5210, 5391)  # G92 and G54..G59.3, read from offsets.Offsets
+HOMES = (*range(5161, 5170), *range(5181, 5190))  # G28 and G30, read from homes.Homes
 READ_ONLY_FROM = 5400
 WRITABLE_FROM = 5599  # #5599 (DEBUG output on/off) and up LinuxCNC lets a program write
 INTEGER_TOLERANCE = 1.0e-4  # LinuxCNC reads an integer value within this of a whole number
@@ -65,7 +68,7 @@ class Parameters:
 
     def read(self, number: float) -> float:
         n = self._number(number)
-        if READ_ONLY_FROM <= n < WRITABLE_FROM or n in OFFSETS:
+        if READ_ONLY_FROM <= n < WRITABLE_FROM or n in OFFSETS or n in HOMES:
             return self.numbered_system(n)
         return self.numbered.get(n, 0.0)
 
@@ -99,7 +102,7 @@ class Parameters:
             raise ExprError(f"#{n}", "is read only (the interpreter's)")
         if n in VAR_FILE:
             raise ExprError(f"#{n}", "LinuxCNC keeps it in its var file: here the job's setup and "
-                                     "work_offsets, G10 L2/L20, G92 and G52 set it")
+                                     "work_offsets, G10 L2/L20, G92, G52, G28.1 and G30.1 set it")
         self.numbered[n] = value
 
     def call(self, args: list[float]) -> None:

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 from .expressions import ExprError
 from .offsets import SYSTEMS
-from .parameters import OFFSETS
+from .parameters import HOMES, OFFSETS
 
 if TYPE_CHECKING:
     from .translate import Translator
@@ -58,8 +58,9 @@ def named(tr: "Translator", name: str) -> float:
 
 
 def numbered(tr: "Translator", n: int) -> float:
-    """#5210-#5390 (G92 and the coordinate systems, offsets.Offsets.read), #5220 and #5400 and
-    up: the system in force, the tool, the position."""
+    """#5161-#5189 (G28 and G30, homes.Homes.read), #5210-#5390 (G92 and the coordinate
+    systems, offsets.Offsets.read), #5220 and #5400 and up: the system in force, the tool,
+    the position."""
     s = tr.state
     tool = tr.tool_entry(s.tool)
     scale = 1.0 / 25.4 if s.inch else 1.0
@@ -67,6 +68,8 @@ def numbered(tr: "Translator", n: int) -> float:
         return float(SYSTEMS.index(s.work_offset) + 1)
     if n in OFFSETS:
         return tr.offsets.read(n)
+    if n in HOMES:
+        return tr.homes.read(n)
     if n == 5400:
         return float(s.tool)
     if n == 5403:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from . import arcs, compensation, offsets, path_tolerance, saved_state, surface_speed, system
+from . import arcs, compensation, homes, offsets, path_tolerance, saved_state, splines, surface_speed, system
 from .control import Executor
 from .drilling import hole
 from .finishing import g70
@@ -104,6 +104,7 @@ class Translator:
         self.line = 0  # the line running, for #<_line>
         self.tools = {n: dict(entry) for n, entry in ctx.tool_table.items()}  # G10 L1/L10 edit this copy
         self.offsets = offsets.Offsets(ctx.setup, ctx.work_offsets)  # G10 L2/L20, G92, G52 edit these
+        self.homes = homes.Homes(ctx.machine)  # G28.1/G30.1 store these
         self.comp = compensation.State()  # G41/G42: the moves wait for their offset until G40
         self.contours: dict[tuple[int, int], list[Block]] = {}  # G71 P Q's N blocks, for a G70 P Q after it
 
@@ -249,7 +250,7 @@ class Translator:
             self._g10(b, used)  # its axis words are data, not motion
         elif any(c in g for c in offsets.OFFSET_CODES):
             offsets.g92(self, b, used, next(c for c in g if c in offsets.OFFSET_CODES))
-        else:
+        elif not homes.words(self, b, used, g):  # G28/G30 take the axis words, G28.1/G30.1 leave them
             surface_speed.check_motion(self, b, g)
             self._motion(b, g, used)
         if 0.0 in m or 1.0 in m:  # the stop group runs last, after the line's motion
@@ -350,6 +351,9 @@ class Translator:
             if 4.0 in g:
                 raise GcodeError(b.line, word_text("G", motion), "cannot share a line with G4")
             self._one_shot(b, motion, used)
+            return
+        if motion == splines.CODE:  # the motion mode in force stays, as in LinuxCNC
+            splines.g5_1(self, b, g, used)
             return
         if motion is not None:
             if motion in DRILL_CYCLES and s.motion != motion:

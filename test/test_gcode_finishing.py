@@ -1,5 +1,5 @@
 """G70 finishing (cnc_msgs_py.gcode.finishing) and the offset paths it shares with cutter
-compensation (cnc_msgs_py.gcode.compensation), and G72's refusal.
+compensation (cnc_msgs_py.gcode.compensation), and a G7x contour LinuxCNC refuses.
 
 - test/gcode_oracle/lathe_g70.ngc (two passes, a chamfer, an inside shoulder, an outside
   round, an inside fillet): every feed and arc end rs274 -g makes of it (recorded by
@@ -82,9 +82,10 @@ def test_offsets_the_contour_cannot_follow_are_refused(path, d, reason):
     ("o1 sub\nG1 X5 Z0\nG1 Z-5\no1 endsub\nG70 Q1 P0\nM2", "line 9: P0: the number of passes must be a whole number >= 1"),
     ("o1 sub\nG1 X5 Z0\no1 endsub\nG70 Q1\nM2", "line 8: G70: the contour needs at least two points"),
     ("o1 sub\nG1 X5 Z0\nG1 X3 Z-2\nG1 Z-3\no1 endsub\nG70 Q1 D6 P2\nM2", "line 10: G70: the inside corner"),
-    ("o1 sub\nG1 X5 Z0\nG1 Z-5\no1 endsub\nG72 Q1 X12 Z3 I1 D0\nM2", "line 9: G72: facing roughing (passes along X) is not"),
+    ("o1 sub\nG1 X5 Z0\nG1 Z-5\nG1 X8 Z-3\nG1 X10 Z-8\no1 endsub\nG71.1 Q1 X12 Z3 I1 D0\nM2",
+     "line 11: G71.1: G7X error: Not monotonic: the contour runs back against the passes (-z) at Z-3"),
 ])
-def test_g70_and_g72_refusals(text, reason):
+def test_g70_and_g7x_refusals(text, reason):
     with pytest.raises(GcodeError) as err:
         translate(LATHE + text, Context("t", "lathe"))
     assert str(err.value).startswith(reason), str(err.value)

@@ -132,11 +132,13 @@ class Executor:
         """The program's blocks in execution order; ends where the program's lines end."""
         return self._run(0)
 
-    def expand(self, name: str, line: int) -> list[Block]:
-        """The blocks one call of subroutine ``name`` makes (G71's contour), no arguments."""
+    def expand(self, name: str, line: int) -> Iterator[Block]:
+        """The blocks one call of subroutine ``name`` makes (G71's contour), no arguments, each
+        evaluated as it is taken: the caller moves #<_x>/#<_z> along the contour as LinuxCNC
+        reads it (lathe._profile). Take them all."""
         depth = len(self.frames)
         self._call(OWord(name, "call"), [], line)
-        return list(self._run(depth))
+        return self._run(depth)
 
     def _unit_of(self, name: str, line: int) -> tuple[Unit, tuple[int, int]]:
         for unit in (self.frames[-1].unit, self.main):

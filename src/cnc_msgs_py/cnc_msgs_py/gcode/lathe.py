@@ -1,10 +1,11 @@
-"""G76 threading and G71 roughing into our thread and turn operations
-(``cnc_msgs_py.gcode.cycles`` says how their words map)."""
+"""G76 threading and G71/G72 roughing (and G71.1/G72.1, G71.2/G72.2) into our thread and turn
+operations (``cnc_msgs_py.gcode.cycles`` says how their words map)."""
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Iterable
 
 from . import arcs
+from ..kinds.turn import Frame
 from .cycles import clip_to_stock, g76_depths, thread_passes
 from .lexer import Block, GcodeError, word_text
 from .modal import check_groups
@@ -68,8 +69,22 @@ def g76(tr: "Translator", b: Block, used: set[str]) -> None:
     # our cycle ends back at its start on the drive line
 
 
-def _profile(tr: "Translator", blocks: list[Block], start: tuple[float, float], line: int, cycle: str = "G71") -> list:
-    """The contour's [z, radius] points and {arc_to, radius, center} arcs, from the start point."""
+def _profile(tr: "Translator", blocks: Iterable[Block], start: tuple[float, float], line: int,
+             cycle: str = "G71") -> list:
+    """The contour's [z, x] points and {arc_to, radius, center} arcs, from the start point.
+    While it is read, the position (#<_x>, #<_z>) is the contour's last point, as LinuxCNC
+    reads a G7x contour (a contour may build on it: ``G1 X[#<_x>+5]``); then the tool's again."""
+    s = tr.state
+    saved = dict(s.position)
+    try:
+        return _read_profile(tr, blocks, start, line, cycle)
+    finally:
+        s.position.clear()
+        s.position.update(saved)
+
+
+def _read_profile(tr: "Translator", blocks: Iterable[Block], start: tuple[float, float], line: int,
+                  cycle: str) -> list:
     s = tr.state
     z, x = start
     out: list = []
@@ -106,6 +121,7 @@ def _profile(tr: "Translator", blocks: list[Block], start: tuple[float, float], 
         else:
             out.append([nz, nx])
         z, x = nz, nx
+        s.position["z"], s.position["x"] = z, x
     if len(out) < 2:
         raise GcodeError(line, cycle, "the contour needs at least two points")
     return out
@@ -124,11 +140,43 @@ def _numbered_blocks(tr: "Translator", b: Block, p: int, q: int) -> list[Block]:
                                                "P first")
 
 
-def g71(tr: "Translator", b: Block, used: set[str]) -> None:
-    """G71 Q<sub> (or P<N> Q<N>) X Z D I R: roughing."""
+# G71/G72 and their .1 (no pockets) and .2 (only the pockets) variants: the pass axis and pockets
+ROUGHING = {71.0: ("z", "cut"), 71.1: ("z", "leave"), 71.2: ("z", "only"),
+            72.0: ("x", "cut"), 72.1: ("x", "leave"), 72.2: ("x", "only")}
+MONOTONIC_MM = 1.0e-3  # LinuxCNC's G7x tolerance: a contour may run back this far against the passes
+
+
+def _cycle_frame(profile: list, axis: str) -> Frame:
+    """The directions LinuxCNC's G71 (axis z) or G72 (axis x) reads from the contour: its
+    passes run the way the contour runs from its first point to its last along that axis, and
+    step from the side the contour's first point lies on towards its last point's across it
+    (interp_g7x.cc: swap(), after rotate() for G72). Outside turning, a bore, a face and a face
+    bore (and G71 towards +z) are these four quadrants, twice."""
+    first, last = (p if isinstance(p, list) else p["arc_to"] for p in (profile[0], profile[-1]))
+    (fz, fx), (lz, lx) = first, last
+    if axis == "z":
+        return Frame("+z" if fz < lz else "-z", "+x" if fx > lx else "-x")
+    return Frame("+x" if fx < lx else "-x", "-z" if fz < lz else "+z")
+
+
+def _check_monotonic(b: Block, name: str, profile: list, frame: Frame) -> None:
+    """LinuxCNC's refusal of a contour that runs back against the passes."""
+    ends = [frame.to_cycle(*(p if isinstance(p, list) else p["arc_to"])) for p in profile]
+    for (u0, _), (u1, _) in zip(ends, ends[1:]):
+        if u1 > u0 + MONOTONIC_MM:
+            z, x = frame.to_job(u1, 0.0)
+            at = f"Z{z:g}" if frame.passes[1] == "z" else f"X{x:g}"
+            raise GcodeError(b.line, name, f"G7X error: Not monotonic: the contour runs back against the passes "
+                                           f"({frame.passes}) at {at}, as LinuxCNC refuses it")
+
+
+def g71(tr: "Translator", b: Block, used: set[str], code: float = 71.0) -> None:
+    """G71/G72 (.1, .2) Q<sub> (or P<N> Q<N>) X Z D I R: roughing along Z (G71) or along X (G72)."""
     s = tr.state
-    x0, z0 = _at(tr, b, "G71")
-    q = _word(b, used, "Q", "G71")
+    name = word_text("G", code)
+    axis, pockets = ROUGHING[code]
+    x0, z0 = _at(tr, b, name)
+    q = _word(b, used, "Q", name)
     if "P" in b.words:
         used.add("P")
         blocks = _numbered_blocks(tr, b, int(b.words["P"]), int(q))
@@ -138,44 +186,61 @@ def g71(tr: "Translator", b: Block, used: set[str]) -> None:
     sx = s.length(b.words["X"]) / (2.0 if s.diameter else 1.0) if "X" in b.words else x0
     sz = s.length(b.words["Z"]) if "Z" in b.words else z0
     used.update(k for k in "XZ" if k in b.words)
-    allowance = s.length(_word(b, used, "D", "G71", 0.0))
-    depth = s.length(_word(b, used, "I", "G71"))
-    clearance = s.length(_word(b, used, "R", "G71", 0.5))
+    allowance = s.length(_word(b, used, "D", name, 0.0))
+    depth = s.length(_word(b, used, "I", name))
+    clearance = s.length(_word(b, used, "R", name, 0.5))
     if s.feed is None:
-        raise GcodeError(b.line, "G71", "no feed given (F)")
+        raise GcodeError(b.line, name, "no feed given (F)")
     feed = s.length(s.feed) if s.per_rev else s.length(s.feed) / s.speed
-    profile = _profile(tr, blocks, (sz, sx), b.line)
+    profile = _profile(tr, blocks, (sz, sx), b.line, name)
+    frame = _cycle_frame(profile, axis)
+    _check_monotonic(b, name, profile, frame)
     if tr.ctx.stock is not None:
+        if frame != Frame():
+            raise GcodeError(b.line, name, f"the program's stock outline is one for outside turning towards -z; "
+                                           f"this cycle's passes run {frame.passes}, stepping {frame.infeed}")
         stock = tr.ctx.stock
         profile = clip_to_stock(profile, stock)
-    else:
-        z_min = min((p[0] if isinstance(p, list) else p["arc_to"][0]) for p in profile)
-        stock = [[sz, sx], [z_min, sx]]
-    origin = outside(stock, profile, allowance, clearance, (z0, x0))
+    else:  # the stock the cycle assumes: up to its start point across the passes, from it (or from the
+        # contour's first point, where that lies ahead of it, as LinuxCNC moves its start) to the contour's end
+        ends = [frame.to_cycle(*(p if isinstance(p, list) else p["arc_to"]))[0] for p in profile]
+        u0, v0 = frame.to_cycle(sz, sx)
+        u0 = max(u0, ends[0])
+        stock = [list(frame.to_job(u0, v0)), list(frame.to_job(min(ends), v0))]
+    origin = outside(stock, profile, allowance, clearance, (z0, x0), frame)
+    # D all round, as LinuxCNC offsets the contour: G71 leaves it on diameters (faces keep our axial default)
+    allowances = {"finish_allowance": allowance} if axis == "z" else {"finish_allowance": allowance,
+                                                                      "finish_allowance_z": allowance}
     turn = {"stock": stock, "profile": profile, "depth_of_cut": depth, "clearance": clearance, "feed": feed,
-            "origin": list(origin), "finish_allowance": allowance, "finishing_pass": True}
-    tr._begin(b.line, "turn", ("G71", b.line), turn)
+            "origin": list(origin), **allowances, "finishing_pass": True}
+    if frame != Frame():
+        turn.update(passes=frame.passes, infeed=frame.infeed)
+    if pockets != "cut":
+        turn["pockets"] = pockets
+    tr._begin(b.line, "turn", (name, b.line), turn)
     tr._flush()
     s.position["z"], s.position["x"] = origin  # our cycle ends back at its origin
 
 
-def _radius(p: list | dict) -> float:
-    """The largest radius a profile element reaches (an arc's center radius + its radius
-    bounds its bulge)."""
+def _bulge(p: list | dict, frame: Frame) -> float:
+    """The highest v (across the passes, in the cycle's axes) a profile element reaches (an
+    arc's center + its radius bounds its bulge)."""
     if isinstance(p, list):
-        return p[1]
-    return max(p["arc_to"][1], p["center"][1] + abs(p["radius"]))
+        return frame.to_cycle(*p)[1]
+    return max(frame.to_cycle(*p["arc_to"])[1], frame.to_cycle(*p["center"])[1] + abs(p["radius"]))
 
 
-def outside(stock: list, profile: list, allowance: float, clearance: float, at: tuple[float, float]) -> tuple[float, float]:
-    """Where the roughing starts and ends: the tool's (z, radius) when it stands clear of the
-    stock and the finished profile, else R (the clearance) above them, straight out from
-    where it stands. LinuxCNC's G71 may start on the stock's corner (``G0 X40 Z2`` then
-    ``G71 ... X40 Z2``): its first move retracts by R, and so does ours."""
-    z, x = at
-    top = max(max(p[1] for p in stock if isinstance(p, list)), max(_radius(p) for p in profile) + allowance)
-    first = profile[0][0] if isinstance(profile[0], list) else profile[0]["arc_to"][0]
-    right = max(next(p[0] for p in stock if isinstance(p, list)), first)
-    if x > top or z > right:
-        return z, x
-    return z, top + clearance
+def outside(stock: list, profile: list, allowance: float, clearance: float, at: tuple[float, float],
+            frame: Frame = Frame()) -> tuple[float, float]:
+    """Where the roughing starts and ends: the tool's (z, x) when it stands clear of the
+    stock and the finished profile, else R (the clearance) beyond them against the infeed,
+    straight out from where it stands. LinuxCNC's G71 may start on the stock's corner
+    (``G0 X40 Z2`` then ``G71 ... X40 Z2``): its first move retracts by R, and so does ours."""
+    u, v = frame.to_cycle(*at)
+    top = max(max(frame.to_cycle(*p)[1] for p in stock if isinstance(p, list)),
+              max(_bulge(p, frame) for p in profile) + allowance)
+    first = frame.to_cycle(*(profile[0] if isinstance(profile[0], list) else profile[0]["arc_to"]))[0]
+    right = max(frame.to_cycle(*next(p for p in stock if isinstance(p, list)))[0], first)
+    if v > top or u > right:
+        return at
+    return frame.to_job(u, top + clearance)

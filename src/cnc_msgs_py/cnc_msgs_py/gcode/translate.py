@@ -13,7 +13,7 @@ from . import arcs, compensation, homes, offsets, path_tolerance, saved_state, s
 from .control import Executor
 from .drilling import hole
 from .finishing import g70
-from .lathe import g71, g76
+from .lathe import ROUGHING, g71, g76
 from .lexer import Block, GcodeError, closed_by_percent, word_text
 from .modal import DRILL_CYCLES, MOTION, Modal, check_groups
 from .parameters import Parameters, whole
@@ -347,7 +347,7 @@ class Translator:
             if b.has_axes():
                 raise GcodeError(b.line, "G80", "axis words with G80 and no motion to use them")
             return
-        if motion in (70.0, 71.0, 72.0, 76.0):
+        if motion in (70.0, 76.0, *ROUGHING):
             if 4.0 in g:
                 raise GcodeError(b.line, word_text("G", motion), "cannot share a line with G4")
             self._one_shot(b, motion, used)
@@ -512,11 +512,8 @@ class Translator:
             g76(self, b, used)
         elif motion == 70.0:
             g70(self, b, used)
-        elif motion == 72.0:
-            raise GcodeError(b.line, "G72", "facing roughing (passes along X) is not a method of ours: our turning "
-                                            "roughs in passes along Z (G71)")
         else:
-            g71(self, b, used)
+            g71(self, b, used, motion)
 
 
 def translate(text: str, ctx: Context) -> Operations:

@@ -5,17 +5,13 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 from .planning import plan_turn
-from .roughing import plan_roughing
+from .roughing import plan_of
 from cnc_planner.kinds.kind import Figures, JobKind, ProgressCount, ReportSection
 
 
 def cutting_passes(job: SimpleNamespace) -> int:
     """How many roughing passes cut (the progress total)."""
-    t = job.turn
-    rough = plan_roughing([tuple(p) for p in t.stock], [tuple(p) for p in t.profile], t.depth_of_cut,
-                          t.clearance, tuple(t.origin), t.finish_allowance, t.finishing_pass,
-                          t.finish_allowance_z)
-    return sum(1 for m in rough.moves if m.cutting)
+    return sum(1 for m in plan_of(job.turn).moves if m.cutting)
 
 
 KIND = JobKind(

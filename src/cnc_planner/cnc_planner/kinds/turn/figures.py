@@ -12,7 +12,7 @@ from cnc_analysis.recording import Run
 
 from cnc_planner.drawing import FEEDBACK, MM, plt, recording_note, stride
 from cnc_planner.kinds.turn.outline import offset_outline
-from cnc_planner.kinds.turn.roughing import plan_roughing
+from cnc_planner.kinds.turn.roughing import plan_of
 from cnc_planner.kinematics import Kinematics
 
 
@@ -27,16 +27,15 @@ def _turn_passes(run: Run, job: SimpleNamespace, machine: Machine, window: np.nd
     kind (feed or rapid) of the planned move it executes, so cutting and air moves read apart."""
     tj = job.turn
     stock, profile = [tuple(p) for p in tj.stock], [tuple(p) for p in tj.profile]
-    plan = plan_roughing(stock, profile, tj.depth_of_cut, tj.clearance, tuple(tj.origin),
-                         tj.finish_allowance, tj.finishing_pass, tj.finish_allowance_z)
+    segments = plan_of(tj).job_segments()
     kin = Kinematics(machine, job.setup, job.tool)
     fb = run.feedback[window][stride(int(window.sum()))]
     radius, axial = kin.tip_radius_z(fb[:, run.column("x")], fb[:, run.column("z")])
     tip = np.stack([axial, radius], axis=1)
     # the rapid from wherever the job found the tool to the cycle's start point comes first
-    starts = np.array([tip[0]] + [a for a, _ in plan.segments()])
-    ends = np.array([plan.origin] + [m.end for _, m in plan.segments()])
-    feed = np.array([False] + [m.kind == "feed" for _, m in plan.segments()])
+    starts = np.array([tip[0]] + [a for a, _ in segments])
+    ends = np.array([tuple(tj.origin)] + [m.end for _, m in segments])
+    feed = np.array([False] + [m.kind == "feed" for _, m in segments])
     feed_of_sample = feed[_follow_moves(tip, starts, ends)]
     z, r = tip[:, 0] * MM, tip[:, 1] * MM
     z_span = max(z.max(), stock[0][0] * MM) - min(z.min(), stock[-1][0] * MM)

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cnc_msgs_py.kinds.turn import Frame
 from cnc_msgs_py.units import to_mm
 
 from cnc_planner.kinds.turn.stock import Point, StockModel
@@ -32,7 +33,8 @@ class TurnMove:
 
 @dataclass
 class RoughingPlan:
-    """A roughing cycle as straight moves from the machining origin Q0 back to Q0.
+    """A roughing cycle as straight moves from the machining origin Q0 back to Q0, in the
+    cycle's own axes (frame: the job's directions); stock is the one the cycle started from.
 
     passes counts pass lines cut over one free stretch each (and the contour pass, if any).
     """
@@ -41,6 +43,15 @@ class RoughingPlan:
     passes: int
     origin: Point
     stock: list[Point]
+    frame: Frame = Frame()
+
+    def job_moves(self) -> list[TurnMove]:
+        """The moves in the job's (z, x)."""
+        return [TurnMove(m.kind, *self.frame.to_job(m.z, m.x), m.cutting) for m in self.moves]
+
+    def job_segments(self) -> list[tuple[Point, TurnMove]]:
+        """Each move with the point it starts from, in the job's (z, x)."""
+        return with_starts(self.frame.to_job(*self.origin), self.job_moves())
 
     def segments(self) -> list[tuple[Point, TurnMove]]:
         """Each move with the point it starts from."""

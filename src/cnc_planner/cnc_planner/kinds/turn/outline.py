@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 
+from cnc_msgs_py.kinds.turn import Frame
 from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.units import to_mm
 
@@ -32,41 +33,54 @@ def mm_text(value_m: float) -> str:
     return text + "0" if text.endswith(".") else text
 
 
-def _check_outline(field: str, points: list[Point]) -> None:
+def _job_u(frame: Frame, u: float) -> float:
+    """The job's coordinate along the passes for a cycle u."""
+    return -u if frame.passes[0] == "+" else u
+
+
+def _along(frame: Frame, u: float) -> str:
+    """'z=-5.0'-like text of the job's coordinate along the passes for a cycle u."""
+    return f"{frame.passes[1]}={mm_text(_job_u(frame, u))}"
+
+
+def _check_outline(field: str, points: list[Point], frame: Frame) -> None:
+    """points in the cycle's axes (u, v); the reasons name the job's axes."""
     if len(points) < 2:
         raise TurningError(field, f"needs at least 2 points (got {len(points)})")
+    along = ("z must decrease from right to left" if frame.passes == "-z"
+             else f"{frame.passes[1]} must {'increase' if frame.passes[0] == '+' else 'decrease'} along the outline, "
+                  f"in the passes' direction ({frame.passes})")
     for i, p in enumerate(points):
         if len(p) != 2 or not all(math.isfinite(v) for v in p):
             raise TurningError(field, f"point {i} is not a finite [z, radius] pair")
-        if p[1] < 0.0:
-            raise TurningError(field, f"radius must not be negative (point {i})")
         if i == 0:
             continue
         if p[0] > points[i - 1][0]:
-            raise TurningError(field, f"z must decrease from right to left (point {i})")
+            raise TurningError(field, f"{along} (point {i})")
         if tuple(p) == tuple(points[i - 1]):
             raise TurningError(field, f"point {i} repeats point {i - 1}")
     # With z never increasing, the outline can only cross itself by turning back on a shoulder.
     for i in range(1, len(points) - 1):
         (z0, r0), (z1, r1), (z2, r2) = points[i - 1], points[i], points[i + 1]
         if z0 == z1 == z2 and (r1 - r0) * (r2 - r1) < 0.0:
-            raise TurningError(field, f"self-intersects at segment {i} (turns back at z={mm_text(z1)} mm)")
+            raise TurningError(field, f"self-intersects at segment {i} (turns back at {_along(frame, z1)} mm)")
     if points[0][0] == points[-1][0]:
-        raise TurningError(field, "must span a length along z")
+        raise TurningError(field, f"must span a length along {frame.passes[1]}")
 
 
-def check_outlines(stock: list[Point], profile: list[Point]) -> None:
-    """Raise TurningError unless stock and profile are valid outlines and the profile lies in the stock."""
-    _check_outline("turn.stock", stock)
-    _check_outline("turn.profile", profile)
+def check_outlines(stock: list[Point], profile: list[Point], frame: Frame = Frame()) -> None:
+    """Raise TurningError unless stock and profile (in the cycle's axes) are valid outlines and
+    the profile lies in the stock."""
+    _check_outline("turn.stock", stock, frame)
+    _check_outline("turn.profile", profile, frame)
     (s_right, _), (s_left, _) = stock[0], stock[-1]
     (p_right, _), (p_left, _) = profile[0], profile[-1]
     for z in (p_right, p_left):
         if not s_left - EPS <= z <= s_right + EPS:
             raise TurningError(
                 "turn.profile",
-                f"lies outside the stock at z={mm_text(z)} mm "
-                f"(the stock spans z={mm_text(s_right)}..{mm_text(s_left)} mm)"
+                f"lies outside the stock at {_along(frame, z)} mm "
+                f"(the stock spans {_along(frame, s_right)}..{mm_text(_job_u(frame, s_left))} mm)"
             )
     s_field, p_field = HeightField.from_outline(stock), HeightField.from_outline(profile)
     zs = np.union1d(p_field.breaks(p_left, p_right), s_field.breaks(p_left, p_right))
@@ -74,7 +88,7 @@ def check_outlines(stock: list[Point], profile: list[Point]) -> None:
         for z, side in ((hi, 0), (lo, 1)):  # each value from inside (lo, hi)
             p = p_field.limits(z)[side][0]
             if p > s_field.limits(z)[side][0] + EPS:
-                raise TurningError("turn.profile", f"lies outside the stock at z={mm_text(z)} mm")
+                raise TurningError("turn.profile", f"lies outside the stock at {_along(frame, z)} mm")
 
 
 def _envelope(pieces: list[tuple[float, float, float, float]], lo: float, hi: float) -> list[tuple[float, ...]]:
@@ -151,3 +165,52 @@ def offset_outline(profile: list[Point], radial: float, axial: float) -> list[Po
     if profile[-1][0] == profile[-2][0]:
         out.append((profile[-1][0], profile[-1][1] + radial))
     return out
+
+
+def hull(outline: list[Point]) -> list[Point]:
+    """The outline with its pockets bridged, right to left: the highest radius of the outline
+    at or right of each z (a running maximum), what a pass coming from the right meets first.
+    Where the outline dips below the height reached, the hull runs level across to where it
+    climbs back (G71.1: no pocket is cut)."""
+    out: list[Point] = [outline[0]]
+    top = outline[0][1]
+    for (z0, r0), (z1, r1) in zip(outline, outline[1:]):
+        if r1 < top:
+            continue  # under the height reached: bridged
+        if r0 < top:  # climbs back out of a pocket: the bridge ends where it crosses the top
+            q = (z0 + (top - r0) / (r1 - r0) * (z1 - z0), top)
+            if q != out[-1]:
+                out.append(q)
+        if (z1, r1) != out[-1]:
+            out.append((z1, r1))
+        top = r1
+    if out[-1][0] != outline[-1][0]:
+        out.append((outline[-1][0], top))
+    return out
+
+
+def working_outlines(stock: list[Point], profile: list[Point], radial: float, axial: float,
+                     pockets: str) -> tuple[list[Point], list[Point]]:
+    """The stock a roughing cycle starts from and the outline it works to, in the cycle's own
+    axes: the profile offset by the allowances; with pockets ``leave`` its hull; with ``only``
+    the offset profile, from the stock a pass over the hull leaves (as G71.2 assumes G71.1 left
+    it). The planner and the judge both take them from here."""
+    offset = offset_outline(profile, radial, axial)
+    if pockets == "cut":
+        return stock, offset
+    bridged = hull(offset)
+    if pockets == "leave":
+        return stock, bridged
+    field = HeightField.from_outline(stock)
+    path = [(max(stock[0][0], bridged[0][0]) + 1.0, bridged[0][1]), *bridged]
+    for a, b in zip(path, path[1:]):
+        field = field.lowered(a, b)
+    return field.outline(), offset
+
+
+def allowances(frame: Frame, finish_allowance: float, finish_allowance_z: float) -> tuple[float, float]:
+    """The finishing allowances across the passes and along them (offset_outline's radial and
+    axial): x's and z's when the passes run along z, z's and x's when they run along x."""
+    if frame.passes[1] == "z":
+        return finish_allowance, finish_allowance_z
+    return finish_allowance_z, finish_allowance

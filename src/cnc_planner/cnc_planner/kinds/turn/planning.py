@@ -7,7 +7,7 @@ from types import SimpleNamespace
 from cnc_msgs_py.machine import Machine
 
 from cnc_planner.kinds.turn.moves import TurnMove
-from cnc_planner.kinds.turn.roughing import plan_roughing
+from cnc_planner.kinds.turn.roughing import plan_of
 from cnc_planner.kinematics import Kinematics
 from cnc_planner.motion.builder import PlanBuilder
 from cnc_planner.motion.surface_speed import css_feeds, ramp_to_radius, surface_speed_of
@@ -26,30 +26,29 @@ def plan_turn(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin:
     Bad outlines or cycle parameters raise TurningError, a JobError that names the turn field.
     """
     t = job.turn
-    stock = [tuple(p) for p in t.stock]
-    profile = [tuple(p) for p in t.profile]
-    rough = plan_roughing(stock, profile, t.depth_of_cut, t.clearance, tuple(t.origin),
-                          t.finish_allowance, t.finishing_pass, t.finish_allowance_z)
+    plan = plan_of(t)
+    moves = plan.job_moves()  # in the job's (z, x), whichever way the passes run
+
     def axes_of(z: float, r: float, field: str = "turn.profile") -> dict[str, float]:
         return to_axes(kin, {"x": r, "z": z}, field)
     origin = axes_of(*t.origin, "turn.origin")
     check_travel(machine, origin, "turn.origin")
     css = surface_speed_of(job, machine)
-    starts = [tuple(t.origin)] + [m.end for m in rough.moves[:-1]]  # (z, radius) each move starts at
-    cut_radius = _next_cut_radii(rough.moves, starts)
+    starts = [tuple(t.origin)] + [m.end for m in moves[:-1]]  # (z, x) each move starts at
+    cut_radius = _next_cut_radii(moves, starts)
     if css is None:
         builder.spindle(job.spindle_rpm)
-    elif rough.moves:
+    elif moves:
         ramp_to_radius(builder, css, cut_radius[0])
     builder.rapid(origin)
     vibration = vibration_of(job)
     passes = 0
-    for i, move in enumerate(rough.moves):
+    for i, move in enumerate(moves):
         target = axes_of(move.z, move.x)
         check_travel(machine, target, "turn.profile")
         start = builder.free_from(builder.moving(target) if move.kind == "rapid" else list(target))  # as it starts
         if move.kind == "rapid":
-            if css is not None and i > 0 and rough.moves[i - 1].kind == "feed":
+            if css is not None and i > 0 and moves[i - 1].kind == "feed":
                 ramp_to_radius(builder, css, cut_radius[i])
             builder.rapid(target)
             continue
@@ -60,16 +59,17 @@ def plan_turn(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin:
             feed_move(builder, target, t.feed, vibration if move.cutting else None, "turn")
             continue
         at = {j: builder.position(j) for j in target}
-        for piece in css_feeds(builder, css, at, target, starts[i][1], move.x):
+        for piece in css_feeds(builder, css, at, target, abs(starts[i][1]), abs(move.x)):
             feed_move(builder, piece, t.feed, None, "turn")
 
 
 def _next_cut_radii(moves: list[TurnMove], starts: list[tuple[float, float]]) -> list[float]:
-    """Per move, the radius the next feed from it on starts at (the last feed's end after it)."""
+    """Per move, the radius the next feed from it on starts at (the last feed's end after it);
+    a radius is the distance from the spindle axis, x's on either side of it."""
     out: list[float] = []
-    radius = starts[-1][1] if starts else 0.0
+    radius = abs(starts[-1][1]) if starts else 0.0
     for move, at in zip(reversed(moves), reversed(starts)):
         if move.kind == "feed":
-            radius = at[1]
+            radius = abs(at[1])
         out.append(radius)
     return out[::-1]

@@ -25,15 +25,26 @@ under it): a pass starts where its line is the clearance away from the stock, a 
 ends against a face retracts at 45 degrees by the clearance, and a pass that has to start
 against a groove's wall comes in on a short ramp from the clearance off the wall.
 Tool nose radius 0.
+
+Every direction is this one cycle: the job's stock, profile and origin are mapped onto the
+cycle's own axes (cnc_msgs_py.kinds.turn.Frame: u for z, v for x above), the cycle runs there,
+and the moves keep those axes (RoughingPlan.frame maps them back). Facing (passes along X),
+bores and passes towards +z differ only in that map, and so do their margins and air moves.
+With ``pockets`` ``leave`` (G71.1) the cycle works to the profile's hull seen from the start
+(``hull``): no pass dips into a pocket and the contour pass bridges it; with ``only`` (G71.2)
+the stock is that hull, so that only the pockets are cut.
 """
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 
+from cnc_msgs_py.kinds.turn import Frame, frame_of
+
 from cnc_planner.kinds.turn.moves import RoughingPlan, TurnMove
-from cnc_planner.kinds.turn.outline import TurningError, check_outlines, mm_text, offset_outline
+from cnc_planner.kinds.turn.outline import TurningError, allowances, check_outlines, mm_text, working_outlines
 from cnc_planner.kinds.turn.stock import EPS, TOUCH, HeightField, Point, StockModel, merge_intervals
 
 MAX_PASSES = 2000  # roughing passes: a depth of cut that needs more is a typing error, and would plan for ages
@@ -70,13 +81,17 @@ def _clear_of(segments: list[tuple[Point, Point]], r: float, alpha: float) -> li
     return merge_intervals(out)
 
 
+def _bound(frame: Frame, across: bool, value: float) -> str:
+    """'x > 5.0'-like text of the job's axis for a cycle coordinate (v if across, else u) above value."""
+    sign, axis = (frame.infeed if across else frame.passes)[0], (frame.infeed if across else frame.passes)[1]
+    return f"{axis} > {mm_text(value)}" if sign == "-" else f"{axis} < {mm_text(-value)}"
+
+
 def _check_parameters(stock: list[Point], profile: list[Point], depth_of_cut: float, clearance: float,
-                      origin: Point, finish_allowance: float) -> None:
+                      origin: Point, finish_allowance: float, frame: Frame) -> None:
     for field, value in (("depth_of_cut", depth_of_cut), ("clearance", clearance)):
         if not (math.isfinite(value) and value > 0.0):
             raise TurningError(f"turn.{field}", f"must be a positive length (got {mm_text(value)} mm)")
-    if not (math.isfinite(finish_allowance) and finish_allowance >= 0.0):
-        raise TurningError("turn.finish_allowance", f"must not be negative (got {mm_text(finish_allowance)} mm)")
     if len(origin) != 2 or not all(math.isfinite(v) for v in origin):
         raise TurningError("turn.origin", "must be a finite [z, radius] pair")
     span = max(r for _, r in stock) - min(r for _, r in profile)
@@ -89,24 +104,22 @@ def _check_parameters(stock: list[Point], profile: list[Point], depth_of_cut: fl
     top = max(max(r for _, r in stock), max(r for _, r in profile) + finish_allowance)
     right = max(stock[0][0], profile[0][0])
     if not (origin[1] > top or origin[0] > right):
-        raise TurningError(
-            "turn.origin",
-            f"must lie above the stock (x > {mm_text(top)} mm) or right of it "
-            f"(z > {mm_text(right)} mm)"
-        )
+        where = ("above the stock", "right of it") if frame == Frame() else ("off the stock", "ahead of it")
+        raise TurningError("turn.origin", f"must lie {where[0]} ({_bound(frame, True, top)} mm) or {where[1]} "
+                                          f"({_bound(frame, False, right)} mm)")
 
 
 class _Cycle:
     """Builds the moves of one roughing cycle while keeping track of the stock left."""
 
-    def __init__(self, stock: list[Point], profile: list[Point], depth_of_cut: float, clearance: float,
-                 origin: Point, finish_allowance: float, finish_allowance_z: float, naive: bool):
-        self.offset = offset_outline(profile, finish_allowance, finish_allowance_z)
+    def __init__(self, stock: list[Point], offset: list[Point], top: float, depth_of_cut: float, clearance: float,
+                 origin: Point, naive: bool):
+        self.offset = offset
         self.part = HeightField.from_outline(self.offset)  # the tool tip stays on or above it
-        self.stock = StockModel(stock)
-        self.r_max = max(r for _, r in stock)
+        self.stock = StockModel(stock, min(0.0, min(r for _, r in offset)))  # a bore's material has no bottom
+        self.r_max = top  # the stock's largest radius, where the pass levels are counted from
         self.stock_right = stock[0][0]
-        self.z_end = profile[-1][0]  # the machining zone ends at the profile's left end
+        self.z_end = offset[-1][0]  # the machining zone ends at the profile's left end
         self.d, self.alpha, self.origin, self.naive = depth_of_cut, clearance, origin, naive
         self.moves: list[TurnMove] = []
         self.at = origin
@@ -151,7 +164,7 @@ class _Cycle:
 
     def clear_start(self, r: float, z: float) -> float:
         """The smallest z' >= z on the line x = r at least the clearance away from the stock left."""
-        blocked = _clear_of(self.stock.field.boundary(), r, self.alpha - 0.5 * TOUCH)
+        blocked = _clear_of(self.stock.field.boundary(self.stock.floor), r, self.alpha - 0.5 * TOUCH)
         blocked = merge_intervals(blocked + self.stock.field.above(r, 0.0))  # inside the stock
         for lo, hi in blocked:
             if lo < z < hi:
@@ -211,16 +224,12 @@ class _Cycle:
         self.move("feed", (runs[-1][0], r), True)
 
     def arrive(self, start: Point) -> None:
-        """Go to a pass start: a straight line from the origin for the first pass."""
-        if self.moves:
+        """Go to a pass start: a straight line from the origin for the first pass where that
+        line clears the stock, else (an origin beyond the far end of the stock) the same short
+        air move as between passes."""
+        if self.moves or self.straight_lift(start, self.origin) > start[1] + TOUCH:
             self.connect(start)
             return
-        if self.straight_lift(start, self.origin) > start[1] + TOUCH:
-            raise TurningError(
-                "turn.origin",
-                f"the straight move to the first pass start (z={mm_text(start[0])}, "
-                f"x={mm_text(start[1])} mm) would cut the stock"
-            )
         self.move("rapid", start, False)
 
     def rough(self) -> None:
@@ -264,39 +273,53 @@ class _Cycle:
 
 
 def _plan(stock: list[Point], profile: list[Point], depth_of_cut: float, clearance: float, origin: Point,
-          finish_allowance: float, finishing_pass: bool, finish_allowance_z: float, naive: bool) -> RoughingPlan:
-    check_outlines(stock, profile)
-    _check_parameters(stock, profile, depth_of_cut, clearance, origin, finish_allowance)
-    if not (math.isfinite(finish_allowance_z) and finish_allowance_z >= 0.0):
-        raise TurningError("turn.finish_allowance_z", f"must not be negative (got {mm_text(finish_allowance_z)} mm)")
-    stock = [(float(z), float(r)) for z, r in stock]
-    profile = [(float(z), float(r)) for z, r in profile]
-    origin = (float(origin[0]), float(origin[1]))
-    cycle = _Cycle(stock, profile, depth_of_cut, clearance, origin, finish_allowance, finish_allowance_z, naive)
+          finish_allowance: float, finishing_pass: bool, finish_allowance_z: float, naive: bool,
+          frame: Frame, pockets: str) -> RoughingPlan:
+    stock = [frame.to_cycle(float(z), float(r)) for z, r in stock]
+    profile = [frame.to_cycle(float(z), float(r)) for z, r in profile]
+    origin = frame.to_cycle(float(origin[0]), float(origin[1]))
+    check_outlines(stock, profile, frame)
+    for field, value in (("finish_allowance", finish_allowance), ("finish_allowance_z", finish_allowance_z)):
+        if not (math.isfinite(value) and value >= 0.0):
+            raise TurningError(f"turn.{field}", f"must not be negative (got {mm_text(value)} mm)")
+    across, along = allowances(frame, finish_allowance, finish_allowance_z)
+    _check_parameters(stock, profile, depth_of_cut, clearance, origin, across, frame)
+    work, offset = working_outlines(stock, profile, across, along, pockets)
+    cycle = _Cycle(work, offset, max(r for _, r in stock), depth_of_cut, clearance, origin, naive)
     cycle.rough()
     if finishing_pass:
         cycle.contour()
     cycle.home()
-    return RoughingPlan(cycle.moves, cycle.passes, origin, stock)
+    return RoughingPlan(cycle.moves, cycle.passes, origin, work, frame)
 
 
 def plan_roughing(stock: list[Point], profile: list[Point], depth_of_cut: float, clearance: float,
                   origin: Point, finish_allowance: float = 0.0, finishing_pass: bool = False,
-                  finish_allowance_z: float = 0.0) -> RoughingPlan:
+                  finish_allowance_z: float = 0.0, frame: Frame = Frame(), pockets: str = "cut") -> RoughingPlan:
     """The roughing cycle whose passes start at the stock left, not at the virtual cylinder.
 
-    stock and profile run right to left as (z, radius); depth_of_cut is radial; clearance is
-    the air in front of each pass start; origin is Q0. With finishing_pass, one more pass
-    follows the offset profile so that only the allowances are left. finish_allowance is radial
-    (U), finish_allowance_z axial (W): see offset_outline.
+    stock and profile run in the passes' direction as (z, x) (right to left for the default
+    frame, passes along -z with the infeed towards -x); depth_of_cut is along the infeed;
+    clearance is the air in front of each pass start; origin is Q0. With finishing_pass, one
+    more pass follows the offset profile so that only the allowances are left. finish_allowance
+    is along x (U), finish_allowance_z along z (W): see offset_outline. pockets: ``cut``,
+    ``leave`` or ``only`` (working_outlines). The plan's moves are in the frame's axes.
     """
     return _plan(stock, profile, depth_of_cut, clearance, origin, finish_allowance, finishing_pass,
-                 finish_allowance_z, False)
+                 finish_allowance_z, False, frame, pockets)
 
 
 def plan_naive(stock: list[Point], profile: list[Point], depth_of_cut: float, clearance: float,
                origin: Point, finish_allowance: float = 0.0, finishing_pass: bool = False,
-               finish_allowance_z: float = 0.0) -> RoughingPlan:
+               finish_allowance_z: float = 0.0, frame: Frame = Frame(), pockets: str = "cut") -> RoughingPlan:
     """The same passes, each started at the virtual cylinder's right end: the baseline to beat."""
     return _plan(stock, profile, depth_of_cut, clearance, origin, finish_allowance, finishing_pass,
-                 finish_allowance_z, True)
+                 finish_allowance_z, True, frame, pockets)
+
+
+def plan_of(turn: SimpleNamespace, naive: bool = False) -> RoughingPlan:
+    """The roughing plan of a parsed turn block (plan_naive's with naive)."""
+    return (plan_naive if naive else plan_roughing)(
+        [tuple(p) for p in turn.stock], [tuple(p) for p in turn.profile], turn.depth_of_cut, turn.clearance,
+        tuple(turn.origin), turn.finish_allowance, turn.finishing_pass, turn.finish_allowance_z, frame_of(turn),
+        turn.pockets)

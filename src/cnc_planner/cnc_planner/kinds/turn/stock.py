@@ -140,28 +140,41 @@ class HeightField:
         za_, ra_, zb_, rb_ = (np.array(c, dtype=float) for c in zip(*(p for p in pieces if p[2] > p[0])))
         return HeightField(za_, ra_, zb_, rb_)
 
+    def outline(self) -> list[Point]:
+        """The field as an outline, right to left (a jump a shoulder), without repeated points."""
+        out: list[Point] = []
+        for za, ra, zb, rb in zip(self.za[::-1], self.ra[::-1], self.zb[::-1], self.rb[::-1]):
+            for q in ((float(zb), float(rb)), (float(za), float(ra))):
+                if not out or q != out[-1]:
+                    out.append(q)
+        return out
+
     def breaks(self, lo: float, hi: float) -> np.ndarray:
         """Piece ends within [lo, hi], with lo and hi: between two of them the field is linear."""
         z0, _, z1, _ = self.clip(lo, hi)
         return np.union1d(np.concatenate([z0, z1]), [lo, hi])
 
-    def boundary(self) -> list[tuple[Point, Point]]:
-        """Segments bounding the region under the field, shoulders and ends included."""
+    def boundary(self, floor: float = 0.0) -> list[tuple[Point, Point]]:
+        """Segments bounding the region under the field, shoulders and ends included; the ends
+        reach down to floor (the spindle axis, or below the deepest pass of a bore or a face in
+        the roughing cycle's own axes, where the material has no bottom)."""
         segs = []
         for i, (za, ra, zb, rb) in enumerate(zip(self.za, self.ra, self.zb, self.rb)):
             segs.append(((za, ra), (zb, rb)))
-            before = self.rb[i - 1] if i > 0 and self.zb[i - 1] == za else 0.0
+            before = self.rb[i - 1] if i > 0 and self.zb[i - 1] == za else floor
             segs.append(((za, before), (za, ra)))
             if i + 1 == len(self.za) or self.za[i + 1] != zb:
-                segs.append(((zb, rb), (zb, 0.0)))
+                segs.append(((zb, rb), (zb, floor)))
         return segs
 
 
 class StockModel:
-    """The stock left at each moment: the tool sweeps away all material above its tip."""
+    """The stock left at each moment: the tool sweeps away all material above its tip. Its
+    end faces reach down to floor (HeightField.boundary)."""
 
-    def __init__(self, stock: list[Point]):
+    def __init__(self, stock: list[Point], floor: float = 0.0):
         self.field = HeightField.from_outline(stock)
+        self.floor = floor
 
     def cut(self, a: Point, b: Point) -> float:
         """Move the tool tip from a to b; returns the length along which it touched material."""
@@ -173,7 +186,7 @@ class StockModel:
         """Distance from p to the stock left (0 if p is inside it)."""
         if p[1] < float(self.field.at(p[0])[0]):
             return 0.0
-        return min(point_segment_distance(np.array([p]), s0, s1)[0] for s0, s1 in self.field.boundary())
+        return min(point_segment_distance(np.array([p]), s0, s1)[0] for s0, s1 in self.field.boundary(self.floor))
 
 
 def merge_intervals(intervals: list[tuple[float, float]]) -> list[tuple[float, float]]:

@@ -84,7 +84,9 @@ class Progress:
                 self.close()
                 self._line(status_text(status))
                 self._held = status.get("reason", "")
-        elif status.get("state") != "running":
+            return
+        self._held = ""
+        if status.get("state") != "running":
             self.close()
             self._line(status_text(status))
         elif self.tty:

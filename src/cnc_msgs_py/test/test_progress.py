@@ -126,3 +126,16 @@ def test_slow_jobs_still_show_a_line_every_five_seconds():
         show(running(k / 2000))
     lines = out.getvalue().splitlines()
     assert 6 <= len(lines) <= 7  # the first, then one per 5 s
+
+
+def test_a_held_program_shows_each_hold_once():
+    """A held job's status comes every 0.5 s while it waits: one line per hold, not per status
+    (a hold at the same line again, in a loop, is a new one)."""
+    out = io.StringIO()
+    show = Progress(out, tty=False, clock=Clock())
+    m0 = {"job_id": "j1", "state": "held", "reason": "held at line 9 (M0): resume by publishing 'j1' on job_resume"}
+    m1 = {**m0, "reason": "held at line 20 (M1): resume by publishing 'j1' on job_resume"}
+    for status in (m0, m0, m0, running(0.5), m1, m1, running(0.7), m1):
+        show(status)
+    held = [line for line in out.getvalue().splitlines() if "held" in line]
+    assert held == [f"  j1: held ({m0['reason']})"] + 2 * [f"  j1: held ({m1['reason']})"]

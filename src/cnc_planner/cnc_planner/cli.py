@@ -159,6 +159,8 @@ def cell_main(argv: list[str] | None = None) -> int:
     parser.add_argument("jobs", nargs="+", help="job documents, one per machine")
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--timeout", type=float, default=900.0, help="wall-clock limit per machine (s)")
+    parser.add_argument("--resume-after", type=float, metavar="S",
+                        help="as cnc-run's: programs held at M0/M1 resume after S s of machine time")
     args = parser.parse_args(argv)
     from cnc_msgs_py.discovery import describe_discovery
     from cnc_planner.runner import local_dds_env
@@ -169,6 +171,8 @@ def cell_main(argv: list[str] | None = None) -> int:
         out = args.out / f"m{i}"
         command = [sys.executable, "-m", "cnc_planner.cli", "run", str(job), "--out", str(out),
                    "--namespace", f"/cell/m{i}/cnc", "--timeout", str(args.timeout)]
+        if args.resume_after is not None:
+            command += ["--resume-after", str(args.resume_after)]
         log = (args.out / f"m{i}.log")
         log.parent.mkdir(parents=True, exist_ok=True)
         runs.append((job, out, subprocess.Popen(command, env=env, stdout=log.open("w"), stderr=subprocess.STDOUT)))

@@ -253,7 +253,7 @@ class PlannerNode(Node):
         active = self.executive.active
         status = DiagnosticStatus(
             level=DiagnosticStatus.OK, name="cnc_planner: executive", hardware_id=self.get_namespace(),
-            message=f"running {active.job_id}" if active else "idle",
+            message=f"{'held' if active.held else 'running'} {active.job_id}" if active else "idle",
             values=[KeyValue(key=topics.PID_KEY, value=str(os.getpid())),
                     KeyValue(key=topics.READY_KEY,
                              value=topics.READY if self.executive.heard_bridge else topics.NOT_READY),

@@ -278,7 +278,7 @@ def words(tr: "Translator", b: Block, used: set[str], g: list[float]) -> None:
 
 def check_line(tr: "Translator", b: Block, g: list[float], m: list[float]) -> None:
     """What LinuxCNC refuses while compensation is on: tool changes, G53, G28/G30, splines,
-    offset changes, canned cycles (their moves are not compensated)."""
+    offset changes, canned cycles but G70 (their moves are not compensated)."""
     if not tr.comp.on:
         return
     refused = [(m, (6.0, 61.0), "M", "change tools"), (g, (53.0,), "G", "use G53"),
@@ -286,8 +286,8 @@ def check_line(tr: "Translator", b: Block, g: list[float], m: list[float]) -> No
                (g, (10.0,), "G", "set offsets or tool data (G10)"),
                (g, (52.0, 92.0, 92.1, 92.2, 92.3), "G", "change axis offsets"),
                (g, (54.0, 55.0, 56.0, 57.0, 58.0, 59.0, 59.1, 59.2, 59.3), "G", "change coordinate systems"),
-               (g, (70.0, 71.0, 71.1, 71.2, 72.0, 72.1, 72.2, 73.0, 76.0, 81.0, 82.0, 83.0), "G",
-                "use canned cycles")]
+               (g, (71.0, 71.1, 71.2, 72.0, 72.1, 72.2, 73.0, 76.0, 81.0, 82.0, 83.0), "G",
+                "use canned cycles")]  # G70 runs compensated, as in LinuxCNC (finishing.py)
     for codes, which, letter, what in refused:
         code = next((c for c in codes if c in which), None)
         if code is not None:

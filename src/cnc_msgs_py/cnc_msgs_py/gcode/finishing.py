@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from . import arcs, surface_speed
+from . import arcs, compensation, surface_speed
 from .compensation import Segment, offset_path
 from .lathe import _profile, _word
 from .lexer import Block, GcodeError, word_text
@@ -88,8 +88,13 @@ def g70(tr: "Translator", b: Block, used: set[str]) -> None:
         raise GcodeError(b.line, "G70", "the contour has no move after its first point")
     side = _side(contour[0], (sz, sx))
 
-    def go(z: float, x: float, feed_move: bool) -> None:
+    def go(z: float, x: float, feed_move: bool, center: tuple[float, float] | None = None,
+           clockwise: bool = False) -> None:
+        before = dict(s.position)
         s.position["z"], s.position["x"] = z, x
+        if compensation.add(tr, b.line, not feed_move, feed if feed_move else None, before, dict(s.position),
+                            center, clockwise):
+            return  # under G41/G42 (G41.1/G42.1) the passes are offset as LinuxCNC offsets its G70's moves
         entry = {"linear": dict(s.position), **feed} if feed_move else {"rapid": dict(s.position)}
         tr._move(b.line, entry)
 
@@ -105,6 +110,8 @@ def g70(tr: "Translator", b: Block, used: set[str]) -> None:
         for seg in path:
             if seg.center is None:
                 go(*seg.end, True)
+            elif tr.comp.on:
+                go(*seg.end, True, seg.center, seg.clockwise)
             else:
                 for pz, px, _ in arcs.chords(seg.start, seg.end, seg.center, seg.clockwise):
                     go(pz, px, True)

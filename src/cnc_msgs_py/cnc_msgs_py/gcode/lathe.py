@@ -2,6 +2,7 @@
 operations (``cnc_msgs_py.gcode.cycles`` says how their words map)."""
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import TYPE_CHECKING, Iterable
 
 from . import arcs
@@ -90,6 +91,8 @@ def _read_profile(tr: "Translator", blocks: Iterable[Block], start: tuple[float,
     out: list = []
     motion = None
     for b in blocks:
+        # the cycle moves X and Z alone: LinuxCNC reads nothing else of a contour's axis words
+        b = replace(b, words={k: v for k, v in b.words.items() if k not in OTHER_AXES})
         check_groups(b, tr.ctx.machine)
         g = [round(v, 1) for v in b.g]
         for code in g:
@@ -143,6 +146,7 @@ def _numbered_blocks(tr: "Translator", b: Block, p: int, q: int) -> list[Block]:
 # G71/G72 and their .1 (no pockets) and .2 (only the pockets) variants: the pass axis and pockets
 ROUGHING = {71.0: ("z", "cut"), 71.1: ("z", "leave"), 71.2: ("z", "only"),
             72.0: ("x", "cut"), 72.1: ("x", "leave"), 72.2: ("x", "only")}
+OTHER_AXES = "YABCUVW"  # axis words a G7x contour carries but its cycle does not move
 MONOTONIC_MM = 1.0e-3  # LinuxCNC's G7x tolerance: a contour may run back this far against the passes
 
 

@@ -2,23 +2,26 @@
 followed at feed, as rs274 -g makes it.
 
 ``G70 Q<sub> X Z D E P`` (or, after a ``G71 P<N> Q<N>``, ``G70 P<N> Q<N>`` with the same
-N numbers: that contour, one pass, as Fanuc-style programs finish): a rapid to the start (X, Z; else where the tool stands); then P
-passes (default 1), pass k offset from the contour by E + (D - E)(P - k)/P (so the last
-pass runs on the contour, offset E), each one reached by a rapid to its first point and left
-by a rapid back to the start, but the last, which ends on the contour's end. The offset is
-to the side of the contour the start point lies on (``_side``: out of the material), corners joined as ``compensation.offset_path`` joins them: arcs about
-outside corners, inside corners trimmed. The contour's first move is the approach, as in
-LinuxCNC: the path starts at its end.
+N numbers: that contour, one pass, as Fanuc-style programs finish): a rapid to the start (X,
+Z; else where the tool stands); then P passes (default 1), pass k offset from the contour by
+E + (D - E)(P - k)/P (so the last pass runs on the contour, offset E), each one reached by a
+rapid to its first point and left by a rapid back to the start, but the last, which ends on
+the contour's end. The offset is to the side of the contour the start point lies on
+(``_side``: out of the material), corners joined as ``compensation.offset_pieces`` joins
+them: arcs about outside corners, inside corners trimmed, a corner LinuxCNC's compensation
+takes as tangent (a program's rounded arcs) joined as one. The contour's first move is the
+approach, as in LinuxCNC: the path starts at its end.
 
-Its feed moves need the spindle only as any feed does (G95). G72 (facing roughing, passes along X) is refused: our turn method roughs in passes along Z
-only (G71), and a facing cycle expanded into moves here would not be one of our methods.
+Its feed moves need the spindle only as any feed does (G95). Under cutter compensation
+(G41/G42, G41.1/G42.1 with the nose radius) the passes are compensated as any move is, as
+LinuxCNC runs its G70 (the roughing cycles refuse compensation, as LinuxCNC's do).
 """
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
 from . import arcs, compensation, surface_speed
-from .compensation import Segment, offset_path
+from .compensation import SMALL_CORNER_RAD, Segment, offset_pieces
 from .lathe import _profile, _word
 from .lexer import Block, GcodeError, word_text
 from .parameters import whole
@@ -103,7 +106,7 @@ def g70(tr: "Translator", b: Block, used: set[str]) -> None:
     for k in range(1, passes + 1):
         distance = side * (end + (start - end) * (passes - k) / passes)
         try:
-            path = offset_path(contour, distance)
+            path = [seg for _, seg in offset_pieces(contour, distance, small_corner=SMALL_CORNER_RAD)]
         except ValueError as err:
             raise GcodeError(b.line, "G70", str(err)) from None
         go(*path[0].start, False)

@@ -2,6 +2,7 @@
 operations (``cnc_msgs_py.gcode.cycles`` says how their words map)."""
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from typing import TYPE_CHECKING, Iterable
 
@@ -116,9 +117,11 @@ def _read_profile(tr: "Translator", blocks: Iterable[Block], start: tuple[float,
                     center = arcs.center_from_radius((z, x), (nz, nx), s.length(b.words["R"]), motion == 2.0)
                 else:
                     center = (z + s.length(b.words.get("K", 0.0)), x + s.length(b.words.get("I", 0.0)))
-                radius = arcs.check_center((z, x), (nz, nx), center)
+                arcs.check_center((z, x), (nz, nx), center)
             except ValueError as err:
                 raise GcodeError(b.line, name, str(err)) from None
+            center = _on_bisector((z, x), (nz, nx), center)
+            radius = math.hypot(z - center[0], x - center[1])
             out.append({"arc_to": [nz, nx], "center": [center[0], center[1]],
                         "radius": -radius if motion == 2.0 else radius})
         else:
@@ -128,6 +131,19 @@ def _read_profile(tr: "Translator", blocks: Iterable[Block], start: tuple[float,
     if len(out) < 2:
         raise GcodeError(line, cycle, "the contour needs at least two points")
     return out
+
+
+def _on_bisector(start: tuple[float, float], end: tuple[float, float],
+                 center: tuple[float, float]) -> tuple[float, float]:
+    """The center moved square to the chord onto its bisector: an arc within LinuxCNC's radius
+    tolerance (a program's rounded I/K) as the exact arc a job outline takes (the move is that
+    tolerance at most; an exact center stays where it is)."""
+    (sz, sx), (ez, ex) = start, end
+    cz, cx = (ez - sz, ex - sx)
+    if cz == 0.0 and cx == 0.0:
+        return center  # a full circle: no chord to be square to
+    along = ((center[0] - (sz + ez) / 2.0) * cz + (center[1] - (sx + ex) / 2.0) * cx) / (cz * cz + cx * cx)
+    return center[0] - along * cz, center[1] - along * cx
 
 
 def _numbered_blocks(tr: "Translator", b: Block, p: int, q: int) -> list[Block]:

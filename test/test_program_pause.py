@@ -4,6 +4,8 @@ feedback), canceled while held, and resumes that name no held job, which move no
 from __future__ import annotations
 
 import json
+import os
+import subprocess
 
 import numpy as np
 import pytest
@@ -77,6 +79,7 @@ def _held(session, job_id: str, after: int = 0) -> dict:
 
 
 def test_a_program_holds_at_m0_until_resumed_and_each_operation_is_judged(tmp_path):
+    from support import BIN
     from cnc_analysis.recording import read_run
     from cnc_planner.report import build_report
     from cnc_planner.runner import Session
@@ -90,10 +93,15 @@ def test_a_program_holds_at_m0_until_resumed_and_each_operation_is_judged(tmp_pa
         session.resume("pause")
         held = _held(session, "pause", after=1)  # on to the M1 (the optional stop is on by default)
         assert held["reason"].startswith(f"held at line {M1_LINE} (M1)")
-        session.resume("pause")
+        # as an operator would, from a shell: the recorder spins meanwhile (the clock waits for it)
+        resume = subprocess.Popen([str(BIN / "cnc-submit"), "--resume", "pause"], stdout=subprocess.PIPE,
+                                  stderr=subprocess.PIPE, text=True, env=dict(os.environ))
         final = session.wait("pause", 60)
         assert final["state"] == "succeeded"
         session.settle(final)
+        out, err = resume.communicate(timeout=60)
+        assert resume.returncode == 0, err
+        assert "cnc-submit: resumed pause on /cnc/job_resume" in err and json.loads(out)["state"] == "succeeded"
     run = read_run(tmp_path / "bag")
     events = {name: [e for e in run.events if e["name"] == name] for name in ("hold", "resume")}
     assert [e["line"] for e in events["hold"]] == [M0_LINE, M1_LINE] == [e["line"] for e in events["resume"]]

@@ -53,6 +53,7 @@ from .status import FINAL_STATES, Status, encode_cancel, encode_resume
 CONNECT_TIMEOUT_S = 10.0  # how long submit waits for a planner to listen on job_goal
 RESEND_S = 2.0  # a goal no status has answered within this is sent again (see submit)
 MATCH_OTHERS_S = 1.0  # then, at most this long for the other listeners on job_goal to match
+HISTORY_S = 0.5  # hear: the kept statuses that follow the first heard of a job (one burst)
 
 
 class CncClient:
@@ -193,10 +194,14 @@ class CncClient:
 
     def hear(self, job_id: str, timeout: float) -> dict | None:
         """``follow`` the job and spin up to ``timeout`` s until a status of it is heard (the
-        planner keeps the latest statuses on job_status); that status, or None."""
+        planner keeps its latest statuses on job_status), then HISTORY_S more for the rest of
+        that history, which comes oldest first; the newest status, or None."""
         self.follow(job_id)
         deadline = time.monotonic() + timeout
         while job_id not in self._statuses and time.monotonic() < deadline:
+            self._spin_once(0.05)
+        deadline = min(deadline, time.monotonic() + HISTORY_S)
+        while job_id in self._statuses and time.monotonic() < deadline:
             self._spin_once(0.05)
         return self.status(job_id)
 

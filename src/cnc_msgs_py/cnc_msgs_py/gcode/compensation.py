@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 
 from . import arcs
 from .lexer import Block, GcodeError, word_text
+from .modal import ROUGHING_CYCLES
 
 if TYPE_CHECKING:
     from .translate import Translator
@@ -286,7 +287,7 @@ def check_line(tr: "Translator", b: Block, g: list[float], m: list[float]) -> No
                (g, (10.0,), "G", "set offsets or tool data (G10)"),
                (g, (52.0, 92.0, 92.1, 92.2, 92.3), "G", "change axis offsets"),
                (g, (54.0, 55.0, 56.0, 57.0, 58.0, 59.0, 59.1, 59.2, 59.3), "G", "change coordinate systems"),
-               (g, (71.0, 71.1, 71.2, 72.0, 72.1, 72.2, 73.0, 76.0, 81.0, 82.0, 83.0), "G",
+               (g, (*ROUGHING_CYCLES, 73.0, 76.0, 81.0, 82.0, 83.0), "G",
                 "use canned cycles")]  # G70 runs compensated, as in LinuxCNC (finishing.py)
     for codes, which, letter, what in refused:
         code = next((c for c in codes if c in which), None)

@@ -159,7 +159,8 @@ def _numbered_blocks(tr: "Translator", b: Block, p: int, q: int) -> list[Block]:
                                                "P first")
 
 
-# G71/G72 and their .1 (no pockets) and .2 (only the pockets) variants: the pass axis and pockets
+# G71/G72 (modal.ROUGHING_CYCLES) and their .1 (no pockets) and .2 (only the pockets) variants:
+# the pass axis and pockets
 ROUGHING = {71.0: ("z", "cut"), 71.1: ("z", "leave"), 71.2: ("z", "only"),
             72.0: ("x", "cut"), 72.1: ("x", "leave"), 72.2: ("x", "only")}
 OTHER_AXES = "YABCUVW"  # axis words a G7x contour carries but its cycle does not move

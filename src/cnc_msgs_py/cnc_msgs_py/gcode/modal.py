@@ -9,7 +9,8 @@ from dataclasses import dataclass, field
 
 from .lexer import Block, GcodeError, word_text
 
-MOTION = {0.0, 1.0, 2.0, 3.0, 5.1, 70.0, 71.0, 71.1, 71.2, 72.0, 72.1, 72.2, 73.0, 76.0, 80.0, 81.0, 82.0, 83.0}
+ROUGHING_CYCLES = (71.0, 71.1, 71.2, 72.0, 72.1, 72.2)  # G71/G72 and their .1/.2 variants (gcode/lathe.py)
+MOTION = {0.0, 1.0, 2.0, 3.0, 5.1, 70.0, *ROUGHING_CYCLES, 73.0, 76.0, 80.0, 81.0, 82.0, 83.0}
 DRILL_CYCLES = {73.0, 81.0, 82.0, 83.0}
 G_GROUPS: dict[float, str] = {
     **{g: "motion" for g in MOTION},

@@ -21,14 +21,14 @@ from typing import TYPE_CHECKING
 
 from ..machine import MachineError, load_machine
 from .lexer import Block, GcodeError, word_text
-from .modal import DRILL_CYCLES, MOTION, Modal
+from .modal import DRILL_CYCLES, MOTION, ROUGHING_CYCLES, Modal
 
 if TYPE_CHECKING:
     from .translate import Translator
 
 INCHES_PER_FOOT = 12.0
 LATHES = ("lathe", "lathe_y")  # layouts whose x is the tool's radius
-SHARES_D = (41.0, 42.0, 41.1, 42.1, 70.0, 71.0, 72.0)  # codes whose own D a G96 in their line would take
+SHARES_D = (41.0, 42.0, 41.1, 42.1, 70.0, *ROUGHING_CYCLES)  # codes whose own D a G96 in their line would take
 
 
 def _m_per_min(s: Modal, value: float) -> float:
@@ -90,7 +90,7 @@ def check_motion(tr: "Translator", b: Block, g: list[float]) -> None:
                                        "G97 S.. before it, not G96")
     if code in DRILL_CYCLES:
         raise GcodeError(b.line, word, "a drill turns at one rpm: G97 S.. before it, not G96")
-    if code in (1.0, 2.0, 3.0, 70.0, 71.0, 72.0):
+    if code in (1.0, 2.0, 3.0, 70.0, *ROUGHING_CYCLES):
         if tr.vibration is not None:
             raise GcodeError(b.line, word, "(CNC,VIBRATION) is locked to one spindle speed: not at constant surface "
                                            "speed (G97 S.., or (CNC,VIBRATION OFF))")

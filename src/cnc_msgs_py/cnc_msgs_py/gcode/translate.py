@@ -13,9 +13,9 @@ from . import arcs, compensation, homes, offsets, path_tolerance, saved_state, s
 from .control import Executor
 from .drilling import hole
 from .finishing import g70
-from .lathe import ROUGHING, g71, g76
+from .lathe import g71, g76
 from .lexer import Block, GcodeError, closed_by_percent, word_text
-from .modal import DRILL_CYCLES, MOTION, Modal, check_groups
+from .modal import DRILL_CYCLES, MOTION, ROUGHING_CYCLES, Modal, check_groups
 from .parameters import Parameters, whole
 from .polar import has_polar, polar_xy
 
@@ -347,7 +347,7 @@ class Translator:
             if b.has_axes():
                 raise GcodeError(b.line, "G80", "axis words with G80 and no motion to use them")
             return
-        if motion in (70.0, 76.0, *ROUGHING):
+        if motion in (70.0, 76.0, *ROUGHING_CYCLES):
             if 4.0 in g:
                 raise GcodeError(b.line, word_text("G", motion), "cannot share a line with G4")
             self._one_shot(b, motion, used)

@@ -8,8 +8,9 @@ with a HoldStream: every axis where the operation before left it, the spindle tu
 it was (LinuxCNC's PROGRAM_STOP leaves the spindle and coolant alone; a program stops the
 spindle with M5 before M0), setpoints every period, a controlled state and not silence, so
 the drives keep their position and a cancel stops from there like any stop. A resume
-(job_resume) releases the hold ``start_delay`` after it arrives, as a new job starts; the
-rest of the program is planned from the hold's state there (the spindle's angle moved on
+(job_resume) releases the hold ``planning_lookahead`` (2 s) after it arrives, its setpoints
+sent at once, so that the drives hold on while the rest of the program is planned from
+the hold's state there (the spindle's angle moved on
 while it turned) and numbered as in the whole program: operation and hold indices,
 events stamped from the resume.
 
@@ -64,10 +65,6 @@ class HoldStream(SetpointStream):
         index = max(self.next_index - 1, int(np.ceil((t_ns - self.start_ns) / self.period_ns)))
         self._stop_index = index
         return self.start_ns + index * self.period_ns
-
-    def reopen(self) -> None:
-        """Hold on after all (the rest could not be planned); nothing past the release was served."""
-        self._stop_index = None
 
 
 def state_after(stream: SetpointStream) -> tuple[dict[str, float], float, int]:

@@ -10,7 +10,7 @@ import pytest
 
 from cnc_msgs_py.machine import load_machine
 
-from cnc_planner.executive import Executive
+from cnc_planner.executive import Executive, Output
 
 MILL = load_machine("mill3")
 TICK_NS = 100_000_000
@@ -89,6 +89,13 @@ def test_a_resume_names_no_held_job_and_changes_nothing():
     out, error = executive.resume("p", 0)
     assert error == "cannot resume 'p': it is running, not held" and out.chunks == []
     assert executive.active.held is None and not executive.active.stream.stopping
+    now = 0
+    while executive.active.held is None:  # streamed up to its M0
+        now += TICK_NS
+        executive.tick(now)
+    out, error = executive.resume("p", now)
+    assert error == "" and out.chunks[-1].end_ns == now + 2_000_000_000 - MILL_PERIOD_NS  # planning_lookahead
+    assert executive.resume("p", now) == (Output(), "cannot resume 'p': it is resuming")
 
 
 def test_a_cancel_while_held_stops_the_spindle():

@@ -32,6 +32,12 @@ TURN = {
     "turn": {"stock": [[0, 10], [-8, 10]], "profile": [[0, 7], [-8, 7]], "depth_of_cut": 1.5,
              "feed": 0.3, "origin": [3, 14], "finish_allowance": 0.2},
 }
+FACING = {  # passes along X inwards, stepping along Z (G72): the figure draws the material left of the face
+    "schema": "cnc_job/1", "job_id": "facing-test", "kind": "turn", "machine": "lathe", "spindle_rpm": 1500,
+    "turn": {"stock": [[0, 10], [0, 0]], "profile": [[-3, 10], [-3, 5], [-1, 5], [-1, 0]], "depth_of_cut": 1.0,
+             "feed": 0.3, "origin": [3, 12], "finish_allowance": 0.2, "finish_allowance_z": 0.2,
+             "passes": "-x", "infeed": "-z"},
+}
 VIBRATION = {
     "schema": "cnc_job/1", "job_id": "vibration-test", "kind": "move", "machine": "lathe", "spindle_rpm": 600,
     "move": [{"rapid": {"x": 10, "z": 1}}, {"linear": {"z": -1}, "feed": 60}, {"rapid": {"x": 12}}],
@@ -47,7 +53,7 @@ THREAD = {
 PLATE = {**DRILL, "job_id": "plate-test",  # more holes than the timing figure shows in detail
          "drill": {**DRILL["drill"], "holes": [[8 * i, 8 * j] for j in range(2) for i in range(4)]}}
 
-JOBS = {"drill": DRILL, "turn": TURN, "vibration": VIBRATION, "thread": THREAD, "plate": PLATE}
+JOBS = {"drill": DRILL, "turn": TURN, "facing": FACING, "vibration": VIBRATION, "thread": THREAD, "plate": PLATE}
 
 
 @functools.cache
@@ -78,6 +84,7 @@ def assert_pictures(paths: list, expected: list[str]) -> None:
 @pytest.mark.parametrize("name, expected", [
     ("drill", ["following_error.png", "drill_xz.png", "drill_timing.png"]),
     ("turn", ["following_error.png", "turn_passes.png"]),
+    ("facing", ["following_error.png", "turn_passes.png"]),
     ("vibration", ["following_error.png", "aircut.png", "aircut_map.png"]),
     ("thread", ["following_error.png", "thread_passes.png", "thread_section.png"]),
 ])

@@ -11,7 +11,7 @@ from cnc_msgs_py.machine import Machine
 from cnc_analysis.recording import Run
 
 from cnc_planner.drawing import FEEDBACK, MM, plt, recording_note, stride
-from cnc_planner.kinds.turn.outline import offset_outline
+from cnc_planner.kinds.turn.outline import allowances, offset_outline
 from cnc_planner.kinds.turn.roughing import plan_of
 from cnc_planner.kinematics import Kinematics
 
@@ -27,7 +27,8 @@ def _turn_passes(run: Run, job: SimpleNamespace, machine: Machine, window: np.nd
     kind (feed or rapid) of the planned move it executes, so cutting and air moves read apart."""
     tj = job.turn
     stock, profile = [tuple(p) for p in tj.stock], [tuple(p) for p in tj.profile]
-    segments = plan_of(tj).job_segments()
+    plan = plan_of(tj)
+    segments, frame = plan.job_segments(), plan.frame
     kin = Kinematics(machine, job.setup, job.tool)
     fb = run.feedback[window][stride(int(window.sum()))]
     radius, axial = kin.tip_radius_z(fb[:, run.column("x")], fb[:, run.column("z")])
@@ -38,17 +39,22 @@ def _turn_passes(run: Run, job: SimpleNamespace, machine: Machine, window: np.nd
     feed = np.array([False] + [m.kind == "feed" for _, m in segments])
     feed_of_sample = feed[_follow_moves(tip, starts, ends)]
     z, r = tip[:, 0] * MM, tip[:, 1] * MM
-    z_span = max(z.max(), stock[0][0] * MM) - min(z.min(), stock[-1][0] * MM)
+    z_span = max(z.max(), *(p[0] * MM for p in stock)) - min(z.min(), *(p[0] * MM for p in stock))
     r_span = max(r.max(), max(p[1] for p in stock) * MM)
+    floor = min(0.0, *(frame.to_cycle(*q)[1] for q in stock + profile))  # the axis, or a face's depth
 
     def area(outline: list[tuple[float, float]]) -> np.ndarray:
-        zr = np.array(outline) * MM
-        return np.vstack([[zr[0, 0], 0.0], zr, [zr[-1, 0], 0.0]])
+        """The region under the outline in the cycle's axes (down to the axis outside), drawn in z, x."""
+        cycle = [frame.to_cycle(*q) for q in outline]
+        ring = [(cycle[0][0], floor), *cycle, (cycle[-1][0], floor)]
+        return np.array([frame.to_job(u, v) for u, v in ring]) * MM
 
     fig, ax = plt.subplots(figsize=(12, float(np.clip(8.5 * r_span / z_span + 1.4, 3.8, 9.0))))
     ax.fill(*area(stock).T, color="tan", alpha=0.45, lw=1, ec="saddlebrown", label="stock before roughing")
     ax.fill(*area(profile).T, color="0.7", lw=1, ec="0.3", label="final profile")
-    allowance = np.array(offset_outline(profile, tj.finish_allowance, tj.finish_allowance_z)) * MM
+    offset = offset_outline([frame.to_cycle(*q) for q in profile], *allowances(frame, tj.finish_allowance,
+                                                                                tj.finish_allowance_z))
+    allowance = np.array([frame.to_job(*q) for q in offset]) * MM
     ax.plot(allowance[:, 0], allowance[:, 1], color="0.2", ls="--", lw=0.9,
             label=f"profile + allowance {tj.finish_allowance * MM:.2f} mm (X), {tj.finish_allowance_z * MM:.2f} mm (Z)")
     ax.plot(z, np.where(~feed_of_sample, r, np.nan), color="tab:blue", lw=0.9, ls="--", label="rapid (air)")

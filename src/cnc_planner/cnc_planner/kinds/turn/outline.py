@@ -53,6 +53,9 @@ def _check_outline(field: str, points: list[Point], frame: Frame) -> None:
     for i, p in enumerate(points):
         if len(p) != 2 or not all(math.isfinite(v) for v in p):
             raise TurningError(field, f"point {i} is not a finite [z, radius] pair")
+    if frame.infeed == "-x":  # outside turning: the material stands around the axis
+        _check_radii(field, points)
+    for i, p in enumerate(points):
         if i == 0:
             continue
         if p[0] > points[i - 1][0]:
@@ -66,6 +69,18 @@ def _check_outline(field: str, points: list[Point], frame: Frame) -> None:
             raise TurningError(field, f"self-intersects at segment {i} (turns back at {_along(frame, z1)} mm)")
     if points[0][0] == points[-1][0]:
         raise TurningError(field, f"must span a length along {frame.passes[1]}")
+
+
+def _check_radii(field: str, points: list[Point]) -> None:
+    """An outside outline stays on the radius side of the spindle axis, but for its ends: a
+    face cut past the axis (G71's contours start or end at X-1) runs there."""
+    lead = next((i for i, p in enumerate(points) if p[1] >= 0.0), len(points))
+    trail = next((i for i, p in reversed(list(enumerate(points))) if p[1] >= 0.0), -1)
+    inner = next((i for i in range(lead, trail + 1) if points[i][1] < 0.0), None)
+    if lead == len(points) or inner is not None:
+        at = 0 if inner is None else inner
+        raise TurningError(field, f"radius must not be negative (point {at}): only the outline's ends may run "
+                                  "past the spindle axis")
 
 
 def check_outlines(stock: list[Point], profile: list[Point], frame: Frame = Frame()) -> None:

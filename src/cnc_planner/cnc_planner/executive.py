@@ -56,12 +56,14 @@ class _Job:
     final: str = ""  # the state to report once the stop has run out (canceled/aborted)
     reason: str = ""
     # a program's hold points (M0/M1, cnc_planner.holding): the HOLD mark the stream is cut at
-    # (``cut``), then the one it holds at (``held``); plan time before the stream's plan
-    # (``done_s``), when the first stream started, and where the program began
+    # (``cut``), then the one it holds at (``held``); the program's plan time run before the
+    # stream (``done_s``) and before ``plan`` begins (``plan_from_s``), when the first stream
+    # started, and where the program began
     cut: dict | None = None
     held: dict | None = None
     resuming: bool = False  # a resume came: the next tick plans the rest
     done_s: float = 0.0
+    plan_from_s: float = 0.0
     first_start_ns: int | None = None
     origin: dict[str, float] = field(default_factory=dict)
 
@@ -231,7 +233,7 @@ class Executive:
             state = job.final or "succeeded"
             out.statuses.append(Status(job.job_id, state, reason=job.reason, progress=1.0,
                                        elapsed_s=(stream.end_ns - job.first_start_ns) / NS,
-                                       duration_s=job.done_s + job.plan.duration,
+                                       duration_s=job.plan_from_s + job.plan.duration,
                                        cycle_time_s=(stream.end_ns - job.first_start_ns) / NS))
             self.active = None
         return out
@@ -323,7 +325,7 @@ class Executive:
             self._stop(now_ns, "aborted", f"the program after its hold at line {job.held['line']}: {err}")
             return
         job.plan.close()
-        job.plan, job.held = plan, None
+        job.plan, job.held, job.plan_from_s = plan, None, job.done_s
         job.stream = SetpointStream(plan, start_ns, self.settings.period_ns, self.settings.chunk_points)
         self._cut(job)
         job.next_status_ns = now_ns
@@ -344,7 +346,7 @@ class Executive:
             event = job.passing.popleft()
             job.counts[event.name] = job.counts.get(event.name, 0) + 1
             job.phase = event.name
-        duration = job.done_s + job.plan.expected_duration
+        duration = job.plan_from_s + job.plan.expected_duration
         job.progress = max(job.progress, min(1.0, elapsed / max(duration, 1e-9)))
         return Status(job.job_id, "running", progress=job.progress,
                       phase=job.phase, elapsed_s=elapsed, duration_s=duration, detail=dict(job.counts),

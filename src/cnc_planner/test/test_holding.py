@@ -115,3 +115,11 @@ def test_a_pause_before_any_motion_and_two_in_a_row_each_hold():
     t, _, _ = samples(chunks)
     assert (np.diff(t) == MILL_PERIOD_NS).all()
 
+
+
+def test_the_duration_stands_through_holds_and_progress_never_goes_back():
+    _, statuses, _ = run(submit(PROGRAM))
+    durations = [s.duration_s for s in statuses]
+    assert max(durations) - min(durations) < 1e-6  # the motion's, held or not, planned again or not
+    progress = [s.progress for s in statuses]
+    assert progress == sorted(progress) and progress[-1] == 1.0

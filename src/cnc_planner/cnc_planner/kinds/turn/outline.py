@@ -153,7 +153,8 @@ def offset_outline(profile: list[Point], radial: float, axial: float) -> list[Po
     (a Minkowski sum): diameters move up by radial, shoulder faces move away from the part by
     axial whichever way they face, slopes by the rectangle's corner. The part's right end face
     moves right by axial too; on the left the outline ends at the profile's end (the zone ends
-    there, against stock that stays).
+    there, against stock that stays), where a shoulder rising at that end (G71's contours end
+    climbing to the stock) moves right by axial as any shoulder: the part goes on beyond it.
     """
     profile = [(float(z), float(r)) for z, r in profile]
     if axial <= 0.0:
@@ -168,6 +169,9 @@ def offset_outline(profile: list[Point], radial: float, axial: float) -> list[Po
             swept += [(za - w, ra, za + w, ra), (za + w, ra, zb + w, rb)]
         else:
             swept.append((za - w, ra, zb + w, rb))
+    (z_end, r_end), before_end = profile[-1], profile[-2]
+    if before_end[0] == z_end and before_end[1] < r_end:  # a shoulder at the zone's end, the part beyond it
+        swept.append((z_end - w, r_end, z_end + w, r_end))
     pieces = _envelope(swept, profile[-1][0], profile[0][0] + w)
     out: list[Point] = []
     for z0, v0, z1, v1 in reversed(pieces):  # right to left
@@ -177,8 +181,8 @@ def offset_outline(profile: list[Point], radial: float, axial: float) -> list[Po
     # the profile's end faces (drops at its ends) stay where they are
     if profile[0][0] == profile[1][0]:
         out.insert(0, (profile[0][0] + w, profile[0][1] + radial))
-    if profile[-1][0] == profile[-2][0]:
-        out.append((profile[-1][0], profile[-1][1] + radial))
+    if profile[-1][0] == profile[-2][0] and out[-1] != (z_end, r_end + radial):
+        out.append((z_end, r_end + radial))
     return out
 
 

@@ -7,6 +7,8 @@
   and LinuxCNC's finishing contour D from our profile.
 - A groove: G71 cuts it, G71.1 bridges it (no feed below the diameter + D), G71.2 cuts only
   in it; the judge reads the job's pockets and finds nothing left that it should have cut.
+  rs274 -g's G71.1 of it (test/gcode_oracle/lathe_g71_1.ngc) passes at our levels and
+  leaves the groove too.
 - The eight quadrants (a contour run either way, mirrored in Z, under G71 and G72): each
   reads LinuxCNC's directions, plans on the lathe, and the judge on its planned path finds
   no gouge and no material left beyond the allowances.
@@ -99,6 +101,26 @@ def test_g72_ends_its_passes_where_linuxcnc_does():
                                                               0.0, 1.0) * (b - a))))
                 for a, b in zip(profile, profile[1:])) for p in contour]
     assert contour and max(abs(d - 0.2) for d in dist) < 1e-3
+
+
+def test_g71_1_leaves_the_groove_as_linuxcnc_does():
+    """test/gcode_oracle/lathe_g71_1.ngc through rs274 -g: its passes along Z below the start X
+    are at our levels (I apart, the last D over the diameter), and neither it nor we feed below
+    the diameter + D: the groove is left, bridged by the contour pass."""
+    path = ROOT / "test" / "gcode_oracle" / "lathe_g71_1.ngc"
+    moves, error = oracle.canonical_moves(oracle.recorded(examples.RS274_RECORDED)(path.read_text()))
+    assert error is None
+    feeds = [mv for mv in moves if mv.kind == "feed"]
+    theirs = sorted({round(mv.end[0], 4) for mv in feeds if abs(mv.end[0] - mv.start[0]) < 1e-9
+                     and mv.end[2] < mv.start[2] - 0.5 and mv.end[0] < 14.0 - 1e-6}, reverse=True)
+    job = parse_job(job_document(path))
+    t = next(op.turn for _, op, _ in job.program.operations if op.kind == "turn")
+    ours = plan_of(t).job_segments()
+    levels = sorted({round(m.x * 1e3, 4) for a, m in ours if m.kind == "feed" and a[1] == m.x and m.x < 14e-3},
+                    reverse=True)
+    assert theirs == [13.0, 12.0, 11.0, 10.2] and levels[:4] == theirs
+    assert min(mv.end[0] for mv in feeds) == pytest.approx(10.2, abs=1e-4)
+    assert min(m.x for _, m in ours if m.kind == "feed") * 1e3 == pytest.approx(10.2, abs=1e-9)
 
 
 GROOVE = """G18 G21 G8 G90 G95

@@ -28,7 +28,8 @@ BLOCKS = [(page, lang, text) for page in PAGES
           for lang, text in re.findall(r"```(\w+)\n(.*?)```", page.read_text(), re.S)]
 # The example job each kind's fragment belongs to.
 EXAMPLE = {"move": "move_mill3", "drill": "drill_row", "turn": "turn_stepped", "thread": "thread_m12",
-           "path": "path_5ax_tilt", "vibration": "lathe_feed_vibration", "program": "program_mill3"}
+           "path": "path_5ax_tilt", "vibration": "lathe_feed_vibration", "program": "program_mill3",
+           "sync": "sync_lathe"}
 YAML = [(page, yaml.safe_load(text)) for page, lang, text in BLOCKS if lang == "yaml"]
 JOB_BLOCKS = [(page, doc) for page, doc in YAML if "axes" not in doc and "drive" not in doc]
 # A plant file, or a description's drive entries (with their tolerance), without the axes.

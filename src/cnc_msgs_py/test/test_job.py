@@ -105,8 +105,17 @@ PROGRAM_DOC = {
     "program": {"gcode": "G21 G90 G17\nM3 S3000\nG0 X0 Y0 Z5\nG99 G81 X0 Y0 Z-5 R2 F1200\nX10\nX20\nG80\nM2\n"},
 }
 
+SYNC_DOC = {
+    "schema": "cnc_job/1",
+    "job_id": "sync-001",
+    "kind": "sync",
+    "machine": "lathe",
+    "spindle_rpm": 600,
+    "sync": [{"rapid": {"x": 12, "z": 5}}, {"sync": {"z": -20}, "lead": 2.0}, {"rapid": {"x": 14}}],
+}
+
 DOCS = {"drill": DRILL_DOC, "move": MOVE_DOC, "turn": TURN_DOC, "thread": THREAD_DOC, "path": PATH_DOC,
-        "program": PROGRAM_DOC}
+        "program": PROGRAM_DOC, "sync": SYNC_DOC}
 
 
 def doc(kind: str) -> dict:

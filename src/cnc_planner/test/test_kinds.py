@@ -37,7 +37,8 @@ def test_every_report_section_and_figure_module_a_kind_names_is_found():
     """The registry names them as "module:function" (found only to report): a typo would
     only show when a job of that kind is reported, so each is resolved here."""
     sections = [kind.report for kind in KINDS.values() if kind.report is not None]
-    assert {s.key for s in sections} == {"drill", "turn", "thread", "kinematics", "program", "surface_speed"}
+    assert {s.key for s in sections} == {"drill", "turn", "thread", "kinematics", "program", "surface_speed",
+                                        "spindle_sync"}
     for section in sections:
         assert callable(section.judge), section.judge_at
         assert section.cards is None or callable(section.cards), section.cards_at

@@ -9,7 +9,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from . import arcs, compensation, homes, offsets, path_tolerance, saved_state, splines, surface_speed, system
+from . import arcs, compensation, homes, offsets, path_tolerance, saved_state, spindle_sync, splines, surface_speed, \
+    system
 from .control import Executor
 from .drilling import hole
 from .finishing import g70
@@ -364,6 +365,10 @@ class Translator:
                 k = next(k for k in "XYZ" if k in b.words)
                 raise GcodeError(b.line, word_text(k, b.words[k]), "no motion mode in force (give G0 or G1)")
             return
+        if s.motion == spindle_sync.CODE:
+            if b.has_axes():
+                spindle_sync.g33(self, b, used)
+            return
         if 53.0 in g and s.motion not in (0.0, 1.0):
             raise GcodeError(b.line, "G53", "needs G0 or G1 in force (machine coordinates are for straight moves)")
         if s.motion in DRILL_CYCLES:
@@ -483,6 +488,7 @@ class Translator:
         if self.current is not None:
             k = len(self.operations) + 1
             self.current.doc["job_id"] = f"{self.ctx.job_id[:56]}.op{k}"
+            spindle_sync.as_sync(self.current.doc)
             if self.current.doc["kind"] == "move" and self.vibration is not None and "vibration" not in self.current.doc \
                     and any("linear" in m for m in self.current.doc["move"]):
                 self.current.doc["vibration"] = dict(self.vibration)

@@ -7,7 +7,7 @@ new module, a line in KIND_SCHEMAS and its block's place in BLOCK_ORDER.
 """
 from __future__ import annotations
 
-from . import drill, move, path, program, thread, turn
+from . import drill, move, path, program, sync, thread, turn
 from .kind import KindSchema
 
 # In the order a job's ``kind`` lists them (and a block of another kind is looked for).
@@ -16,9 +16,10 @@ KIND_SCHEMAS: dict[str, KindSchema] = {kind.name: kind for kind in (
     turn.KIND,
     thread.KIND,
     move.KIND,
+    sync.KIND,
     path.KIND,
     program.KIND,
 )}
 # Where the kinds' blocks stand among a job's keys: the order they are checked in and an
 # unknown key's reason lists them.
-BLOCK_ORDER = ("drill", "move", "turn", "thread", "path", "program")
+BLOCK_ORDER = ("drill", "move", "sync", "turn", "thread", "path", "program")

@@ -10,7 +10,7 @@ from types import SimpleNamespace
 
 from cnc_msgs_py.schema import JobError
 
-from cnc_planner.kinds import drill, move, path, program, thread, turn
+from cnc_planner.kinds import drill, move, path, program, sync, thread, turn
 from cnc_planner.kinds.kind import JobKind
 
 KINDS: dict[str, JobKind] = {kind.name: kind for kind in (
@@ -18,6 +18,7 @@ KINDS: dict[str, JobKind] = {kind.name: kind for kind in (
     drill.KIND,
     turn.KIND,
     thread.KIND,
+    sync.KIND,
     path.KIND,
     program.KIND,
 )}

@@ -2,6 +2,7 @@
 absolute program coordinates."""
 from __future__ import annotations
 
+from collections.abc import Callable
 from types import SimpleNamespace
 
 from cnc_msgs_py.machine import SPINDLE, Machine
@@ -14,18 +15,19 @@ from cnc_planner.vibration.feed import TWO_PI, feed_move, vibration_of
 
 
 def move_targets(job: SimpleNamespace, machine: Machine, kin: Kinematics,
-                 start: dict[str, float]) -> list[dict[str, float] | None]:
+                 start: dict[str, float], block: str = "move") -> list[dict[str, float] | None]:
     """Every move's axis target (None for a dwell), from the machine at ``start``, checked
-    against the travel: a program is checked whole before any of it is planned."""
+    against the travel: a program is checked whole before any of it is planned. ``block``:
+    the job's list of moves (a sync job's holds synchronised moves too)."""
     tip = kin.to_program({j: start.get(j, 0.0) for j in machine.linear_axes})
     targets: list[dict[str, float] | None] = []
-    for i, move in enumerate(job.move):
+    for i, move in enumerate(getattr(job, block)):
         if move.dwell is not None:
             targets.append(None)
             continue
-        kind = "rapid" if move.rapid is not None else "linear"
+        kind = next(k for k in ("rapid", "linear", "sync") if getattr(move, k, None) is not None)
         target = getattr(move, kind)
-        field = f"move[{i}].{kind}"
+        field = f"{block}[{i}].{kind}"
         for key in program_axes(machine, target, field):
             tip[key] = getattr(target, key)
         axes = to_axes(kin, tip, field)
@@ -34,8 +36,11 @@ def move_targets(job: SimpleNamespace, machine: Machine, kin: Kinematics,
     return targets
 
 
-def plan_move(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin: Kinematics) -> None:
-    """A list of rapid, linear and dwell moves in absolute program coordinates.
+def plan_move(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin: Kinematics,
+              block: str = "move", sync: Callable[[PlanBuilder, int, list], None] | None = None) -> None:
+    """A list of rapid, linear and dwell moves in absolute program coordinates; ``block``: the
+    job's list of moves, whose synchronised ones (a sync job's) ``sync`` plans, given the
+    builder, the move's index and every move's axis target.
 
     At a surface speed (G96) the spindle starts at the speed for where the tool stands; from
     each rapid's start it ramps to the speed for the rapid's end point, as Fanuc's G96
@@ -43,15 +48,18 @@ def plan_move(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin:
     speeds along it (cnc_planner.motion.surface_speed). A feed per revolution is per
     revolution of the speed the spindle has."""
     here = {j: builder.position(j) for j in machine.linear_axes}
-    targets = move_targets(job, machine, kin, here)
+    targets = move_targets(job, machine, kin, here, block)
     vibration = vibration_of(job)
     css = surface_speed_of(job, machine)
     if job.spindle_rpm > 0:
         builder.spindle(job.spindle_rpm)
     elif css is not None:
         ramp_to_radius(builder, css, radius_of(kin, {}, here))
-    for i, (move, axes) in enumerate(zip(job.move, targets)):
+    for i, (move, axes) in enumerate(zip(getattr(job, block), targets)):
         start = builder.end_time()
+        if getattr(move, "sync", None) is not None:
+            sync(builder, i, targets)
+            continue
         if axes is None:
             for joint in machine.linear_axes:
                 builder.timelines[joint].add_hold(start, move.dwell)
@@ -73,7 +81,7 @@ def plan_move(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin:
             builder.linear(axes, _feed(move, builder))
         else:
             per_rev = move.feed / (job.spindle_rpm / TWO_PI) if move.feed_per_rev is None else move.feed_per_rev
-            feed_move(builder, axes, per_rev, vibration, f"move[{i}]")
+            feed_move(builder, axes, per_rev, vibration, f"{block}[{i}]")
 
 
 def _feed(move: SimpleNamespace, builder: PlanBuilder) -> float:

@@ -167,7 +167,7 @@ GOOD_LINES = GOOD.splitlines()
 CONFLICTS = ["G20 G21", "G90 G91", "G0 G1 X1", "G17 G18", "G94 G95", "M3 M5", "G98 G99", "G81 G83 X1",
              "G54 G55", "G7 G8", "G43 G49", "G90.1 G91.1"]
 UNSUPPORTED = ["G43.1 Z1", "G41 D99", "G19 G42", "G96 S100", "#1=#<nope>", "G1 X[1/0]", "G1 X1 ^10", "#5400=1",
-               "G1 X[SQRT[-1]]", "O100 ENDWHILE", "O<missing> CALL", "G1 X#<_hal[x]>", "#1=[1 FOO 2]", "A10", "G33 Z1 K1",
+               "G1 X[SQRT[-1]]", "O100 ENDWHILE", "O<missing> CALL", "G1 X#<_hal[x]>", "#1=[1 FOO 2]", "A10", "G33 Z1",
                "G84 Z-1 R1", "G93", "O100 WHILE [1]", "/G1 X1", "G28", "G38.2 Z-1", "G1 X1 X2", "N5 N6", "M4",
                "G81 X0 Y0 Z-3 F100", "G83 X0 Y0 Z-3 R2 F100", "G2 X5 Y5 R1 F100", "G76 P1 Z-1 I-1 J0.1 K0.5",
                "G71 Q5 I1", "G1 Y5", "T99 M6", "G55", "(CNC,WOBBLE ON)", "G1 F-5 X1", "(unclosed", "G0 X1 Q2"]

@@ -126,8 +126,9 @@ def test_linuxcncs_example_programs_plan_or_are_refused_with_their_reason():
     machining = {name: r for name, r in recorded.items() if "outcome" in r}
     assert sorted(name for name, r in machining.items() if r["outcome"] == "plans") == [
         "3D_Chips.ngc", "3dtest.ngc", "arcspiral.ngc", "cds.ngc", "comp-g1.ngc", "comp.ngc", "comp311.ngc",
-        "comp311_2.ngc", "flowsnake.ngc", "gmoccapy_2_tools_with_cutter_radius_compensation.ngc", "lathe_pawn.ngc",
-        "lathecomp.ngc", "offsets.ngc", "skeleton.ngc", "spiral.ngc", "toplevel.ngc", "tort.ngc"]
+        "comp311_2.ngc", "flowsnake.ngc", "g76.ngc", "gmoccapy_2_tools_with_cutter_radius_compensation.ngc",
+        "lathe-g76.ngc", "lathe_pawn.ngc", "lathecomp.ngc", "offsets.ngc", "skeleton.ngc", "spiral.ngc",
+        "threading.ngc", "toplevel.ngc", "tort.ngc"]
     assert all(r["rs274"] == "reads" for r in machining.values() if r["outcome"] == "plans")
     for name, r in machining.items():
         assert r["outcome"] in ("plans", "machine", "program", "language"), name

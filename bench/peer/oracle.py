@@ -40,6 +40,7 @@ from typing import Callable
 import numpy as np
 
 from cnc_msgs_py.job import parse_job
+from cnc_msgs_py.kinds.thread import tapered_ends
 
 RECORDED = Path(__file__).resolve().parents[1] / "results" / "rs274_canonical.json"
 CALL = re.compile(r"^\s*\d+\s+N\S*\s+([A-Z0-9_]+)\((.*)\)")
@@ -173,23 +174,41 @@ def _passes(moves: list[Move]) -> list[Move]:
 
 
 def _check_thread(doc: dict, passes: list[Move], used: int, tol: float) -> tuple[list[str], int, str, float]:
+    """A G76's passes. With tapered ends (end_taper) each pass is more than one synchronised
+    feed: an entry taper's two before it (in to the depth plus K at the start Z, then angled
+    in to the depth over E), an exit taper's one after it (angled out by K over E to the
+    end Z); their end points are compared too."""
     th = parse_job(doc).thread  # SI, its depths as our planner cuts them
     depths = th.depths or [th.depth * math.sqrt(k / th.passes) for k in range(1, th.passes + 1)]
     n = len(depths) + th.spring_passes
-    mine = passes[used:used + n]
-    if len(mine) != n:
-        return [f"{n} passes (spring included), LinuxCNC cuts {len(mine)}"], used + len(mine), "", math.inf
+    ends = th.end_taper
+    entry, exit_ = tapered_ends(ends.ends if ends else None)
+    feeds = 1 + 2 * entry + exit_
+    mine = passes[used:used + n * feeds]
+    if len(mine) != n * feeds:
+        return [f"{n} passes of {feeds} feeds (spring included), LinuxCNC cuts {len(mine)} feeds"], \
+            used + len(mine), "", math.inf
+    groups = [mine[k * feeds:(k + 1) * feeds] for k in range(n)]
     cut = list(depths) + [depths[-1]] * th.spring_passes
     tan_q = math.tan(th.infeed_angle)
-    errs = [abs(mine[0].pitch - th.pitch * 1e3)]
-    for mv, d in zip(mine, cut):  # LinuxCNC's compound infeed: pass k shifted by d_k tan(Q) from Z start,
-        errs += [abs(mv.end[0] - (th.major_radius - d) * 1e3),  # its last pass ends at Z end
-                 abs(mv.start[2] - (th.start_z - d * tan_q) * 1e3),
-                 abs(mv.end[2] - (th.end_z + (cut[-1] - d) * tan_q) * 1e3)]
+    errs = [abs(groups[0][2 * entry].pitch - th.pitch * 1e3)]
+    for group, d in zip(groups, cut):  # LinuxCNC's compound infeed: pass k shifted by d_k tan(Q) from
+        mv, x, e = group[2 * entry], (th.major_radius - d) * 1e3, ends.length * 1e3 if ends else 0.0
+        z0, z1 = (th.start_z - d * tan_q) * 1e3, (th.end_z + (cut[-1] - d) * tan_q) * 1e3  # Z start; its last
+        errs += [abs(mv.end[0] - x), abs(mv.start[2] - (z0 - e if entry else z0)),  # pass ends at Z end
+                 abs(mv.end[2] - (z1 + e if exit_ else z1))]
+        if entry:  # in to the depth plus K at the start, then angled in to the depth over E
+            errs += [abs(group[0].end[0] - (x + th.depth * 1e3)), abs(group[0].end[2] - z0),
+                     abs(group[1].end[0] - x), abs(group[1].end[2] - (z0 - e))]
+        if exit_:  # angled out by K over E to the end
+            errs += [abs(group[-1].end[0] - (x + th.depth * 1e3)), abs(group[-1].end[2] - z1)]
     problems = [f"worst difference {max(errs) * 1e3:.2f} um"] if max(errs) > tol else []
-    shift = mine[0].start[2] - mine[-1].start[2]  # along Z, from the last pass to the first
-    angle = math.degrees(math.atan2(shift, mine[0].end[0] - mine[-1].end[0]))  # over the depth between them
-    return problems, used + n, f"{n} passes: radii, pitch, start/end Z; flank {angle:.2f} deg", max(errs)
+    first, last = groups[0][2 * entry], groups[-1][2 * entry]
+    shift = first.start[2] - last.start[2]  # along Z, from the last pass to the first
+    angle = math.degrees(math.atan2(shift, first.end[0] - last.end[0]))  # over the depth between them
+    tapers = f"; tapered {ends.ends} over {ends.length * 1e3:g} mm" if ends else ""
+    return problems, used + n * feeds, f"{n} passes: radii, pitch, start/end Z{tapers}; flank {angle:.2f} deg", \
+        max(errs)
 
 
 # --- roughing ---------------------------------------------------------------------------------

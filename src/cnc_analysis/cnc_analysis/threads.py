@@ -15,7 +15,8 @@ there, the stock surface (depth 0) before the first. A pass cuts wherever it goe
 than that envelope by more than CUT_TOLERANCE; a chip is a continuous cutting stretch,
 measured in spindle revolutions (one lead of g). Everything is judged on the thread
 between the face z=0 and end_z; the ramp before the face and the pull-out past end_z cut
-air or a relief groove.
+air or a relief groove. Tapered ends (the job's end_taper: G76's E and L) are left out
+too: there the tool ramps out of its depth on purpose, over end_taper.length of groove.
 
 The helix residual is what is left of the tool's axial position after the helix (one lead
 per revolution, its phase fitted once for all passes) and the flank offset
@@ -29,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cnc_msgs_py.kinds.thread import tapered_ends
 from cnc_msgs_py.units import deg, mm, to_mm
 
 from .aircut import CHIP_LIMIT_REVS
@@ -66,10 +68,15 @@ class Groove:
     starts: int
     internal: bool
     taper: float = 0.0  # diameter per length into the part: the surface is a cone
+    taper_length: float = 0.0  # groove length of each tapered end (end_taper.length)
+    taper_entry: bool = False  # the tool ramps in from start_z (end_taper.ends entry or both)
+    taper_exit: bool = False  # the tool ramps out to end_z (exit or both)
 
     @classmethod
     def from_job(cls, thread: dict) -> Groove:
         """Only the geometric keys are read; pass counts and depths are found in the data."""
+        ends = thread.get("end_taper") or {"length": 0.0, "ends": None}
+        entry, exit_ = tapered_ends(ends["ends"])
         return cls(
             start_z=mm(thread["start_z"]),
             end_z=mm(thread["end_z"]),
@@ -80,6 +87,9 @@ class Groove:
             starts=int(thread.get("starts", 1)),
             internal=bool(thread.get("internal", False)),
             taper=float(thread.get("taper", 0.0)),
+            taper_length=mm(ends["length"]),
+            taper_entry=entry,
+            taper_exit=exit_,
         )
 
     @property
@@ -92,10 +102,22 @@ class Groove:
         """x per unit of depth: -1 external (into the stock), +1 internal (out of the bore)."""
         return 1.0 if self.internal else -1.0
 
+    def span(self) -> tuple[float, float]:
+        """The judged thread along the feed (s * g): from the face, or past an entry taper, to
+        end_z, or where an exit taper begins. A ramp lifts the tool by r, which the reading of g
+        (z less the flank offset of the depth read) takes as r * tan(infeed_angle) further
+        along the feed: so an exit ramp is read past its start and needs no margin, an entry
+        ramp up to depth * tan(infeed_angle) past its end, which is left out with it."""
+        s = self.direction
+        lo = max(0.0, s * self.start_z + self.taper_length + self.depth * math.tan(self.infeed_angle)) \
+            if self.taper_entry else 0.0
+        return lo, s * self.end_z - (self.taper_length if self.taper_exit else 0.0)
+
     def grid(self) -> np.ndarray:
-        """Groove coordinates g from the face z=0 to end_z, POINTS_PER_REV per lead."""
-        revs = abs(self.end_z) / self.lead
-        return self.direction * self.lead * np.linspace(0.0, revs, math.ceil(revs * POINTS_PER_REV) + 1)
+        """Groove coordinates g over the judged thread (span), POINTS_PER_REV per lead."""
+        lo, hi = self.span()
+        revs = max(hi - lo, 0.0) / self.lead
+        return self.direction * (lo + self.lead * np.linspace(0.0, revs, math.ceil(revs * POINTS_PER_REV) + 1))
 
 
 def cuts_against_envelope(depths: np.ndarray, surface: np.ndarray | None = None) -> np.ndarray:
@@ -242,9 +264,11 @@ def read_thread(t: np.ndarray, x: np.ndarray, z: np.ndarray, spindle: np.ndarray
     inside = np.zeros(t.size, dtype=bool)
     for i0, i1 in segments:
         inside[i0 : i1 + 1] = True
-    inside &= (s * g >= 0.0) & (s * g <= s * groove.end_z)
+    lo, hi = groove.span()
+    inside &= (s * g >= lo) & (s * g <= hi)
     if not inside.any():
-        raise ValueError("no synchronised pass runs through the thread between z=0 and end_z")
+        raise ValueError("no synchronised pass runs through the thread between z=0 and end_z"
+                         " (less its tapered ends)")
     reference = pitch / TWO_PI * float(np.angle(np.mean(np.exp(1j * TWO_PI * helix[inside] / pitch))))
     residual = _wrap(helix - reference, pitch)
     offset = residual + s * depth * tan  # the tool's axial offset from the nominal helix
@@ -283,7 +307,8 @@ def analyze_thread(
     pitch = lead / groove.starts
     grid = groove.grid()
     psi = s * (grid - groove.start_z) / lead  # revolutions along the helix from start_z
-    full = s * grid <= s * (groove.end_z - s * lead) + 1e-12  # face to one lead before end_z
+    # up to one lead before end_z, where the tool pulls out (an exit taper's ramp is left out already)
+    full = s * grid <= groove.span()[1] - (0.0 if groove.taper_exit else lead) + 1e-12
     slope = np.polyfit(s * depth[inside], offset[inside], 1)[0]
 
     # which groove: where each pass's helix lies, in 1/starts of a lead from the first pass's

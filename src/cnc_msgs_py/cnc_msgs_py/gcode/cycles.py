@@ -7,7 +7,9 @@
   shallower than that.
 - G76: our thread cycle. The major radius is the drive line plus I, the cumulative depths
   are LinuxCNC's J * k^(1/R) capped at K; when those are our own degression (K * sqrt(k/n))
-  within 1 um the block says ``passes: n``, else it lists ``depths``.
+  within 1 um the block says ``passes: n``, else it lists ``depths``. E and L become
+  ``end_taper`` (E its length along the drive line, L 1/2/3 its ends entry/exit/both); E0 or
+  L0 is the plain thread.
 - G71: our roughing; its profile is the subroutine's path (or the P..Q blocks), its stock the
   program's ``stock`` outline when given (the profile clipped to the stock's right end),
   else G71's own assumption, the cylinder at the cycle's start point.
@@ -16,9 +18,12 @@ from __future__ import annotations
 
 import math
 
+from ..kinds.thread import END_TAPER_ENDS
+
 R_GAP_MM = 2.0
 DEPTH_MATCH_MM = 1.0e-3  # G76 depths this close to ours become ``passes: n``
 MAX_PASSES = 100
+G76_TAPER_ENDS = {0.0: None, **{k + 1.0: ends for k, ends in enumerate(END_TAPER_ENDS)}}  # G76's L: end_taper.ends
 
 
 def drill_plane(r: float, z: float) -> dict:

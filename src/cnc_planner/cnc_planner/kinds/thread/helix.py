@@ -15,6 +15,8 @@ with surface(g) = major_radius on a straight thread; on a taper thread (`taper`,
 per length) the stock is a cone, major_radius at the face and growing by taper/2 per unit
 of length into the part (shrinking into a bore), so x follows the cone along the groove
 and both axes stay locked to the spindle angle; the depth stays radial below the cone.
+Tapered ends (G76's E and L, ends.py) raise x out of the depth over their length of
+groove, z still on the lead.
 
 with w the vibration module's waveform (0 at the return point, 1 at the turning point),
 A_k = Q * (d_k - d_(k-1)) the radial amplitude and D_k = D + k*D_step. The vibration
@@ -32,6 +34,7 @@ import math
 import numpy as np
 
 from cnc_planner.kinds.thread import _helix_kernel
+from cnc_planner.kinds.thread.ends import end_ramp, ramp_peaks
 from cnc_planner.kinds.thread.spec import TWO_PI, Pass, ThreadSpec
 from cnc_planner.vibration.waveform import waveform
 
@@ -57,17 +60,25 @@ def helix(spec: ThreadSpec, cut: Pass, psi: np.ndarray) -> np.ndarray:
         math.pi, TWO_PI, 2 * math.pi**2, cut.depth, cut.amplitude, cut.amplitude * rate, cut.amplitude * rate**2,
         spec.start_z, s * spec.pitch, spec.origin[0], spec.major_radius, spec.surface_slope, spec.radial,
         spec.origin[1], s, tan, spec.radial * spec.taper / 2 * s * spec.lead_speed, spec.lead_speed, s * tan))
+    if spec.end_taper is not None:  # x out of the depth by the tapered ends' ramp (ends.py), z on its lead
+        rise, slope, curve = end_ramp(spec, spec.pitch * psi / TWO_PI)
+        lead = spec.lead_speed
+        out[0, :, 0] -= spec.radial * rise
+        out[1, :, 0] -= spec.radial * slope * lead
+        out[2, :, 0] -= spec.radial * curve * lead**2
     return out
 
 
 def helix_peaks(spec: ThreadSpec, cut: Pass) -> np.ndarray:
     """(2, 3): the largest |velocity|, |acceleration| and |jerk| of x and z on the helix of
-    a pass (the spindle turning at speed): the lead and the taper, plus the vibration along
-    the infeed line, whose derivatives grow with the vibrations per second, squared and cubed."""
+    a pass (the spindle turning at speed): the lead, the taper and the tapered ends' ramp,
+    plus the vibration along the infeed line, whose derivatives grow with the vibrations per
+    second, squared and cubed."""
     rate = cut.per_rev * spec.spindle_speed / TWO_PI  # vibrations per second
     radial = cut.amplitude * np.array(_wave_maxima()) * rate ** np.arange(1, 4)  # depth: |v|, |a|, |j|
     cone = np.array([spec.taper / 2 * spec.lead_speed, 0.0, 0.0])  # x follows the taper
-    return np.stack([radial + cone, math.tan(spec.infeed_angle) * radial + np.array([spec.lead_speed, 0.0, 0.0])])
+    return np.stack([radial + cone + ramp_peaks(spec),
+                     math.tan(spec.infeed_angle) * radial + np.array([spec.lead_speed, 0.0, 0.0])])
 
 
 @functools.cache

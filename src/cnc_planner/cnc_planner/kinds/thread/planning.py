@@ -15,6 +15,7 @@ from cnc_servo_bridge.drive import DriveModel
 
 from cnc_planner.kinds.thread.checks import check_thread
 from cnc_planner.kinds.thread.cycle import JOIN_ROOM_REVS, ThreadCycle
+from cnc_planner.kinds.thread.ends import fit_end_taper
 from cnc_planner.kinds.thread.spec import JOINTS, TWO_PI, ThreadSpec
 from cnc_planner.kinds.thread.tolerance import join_room, leave_material
 from cnc_planner.kinematics import Kinematics
@@ -69,11 +70,15 @@ def plan_thread(builder: PlanBuilder, spec: ThreadSpec, servo_period: float = 1e
     the stock); it ends at the cycle start. Events: "thread_pass"
     as each pass's air path begins, "sync" where it is on its helix.
 
+    Tapered ends get their ramps' corners fitted to the x axis (ends.fit_end_taper).
+
     Raises:
-        ThreadError: check_thread's rejections (before anything is added), or a pass whose
-            helix cannot be reached before the face (the builder is then half-built: discard it).
+        ThreadError: check_thread's and fit_end_taper's rejections (before anything is added),
+            or a pass whose helix cannot be reached before the face (the builder is then
+            half-built: discard it).
     """
     machine = builder.machine
+    spec = fit_end_taper(spec, machine)
     check_thread(spec, machine)
     x_origin, z_origin = spec.origin
     drive = DriveModel(machine, servo_period, joints=JOINTS) if compensate else None

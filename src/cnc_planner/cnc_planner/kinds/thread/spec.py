@@ -15,6 +15,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from cnc_msgs_py.kinds.thread import tapered_ends
 from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.units import deg
 
@@ -43,6 +44,20 @@ class ThreadVibration:
 
 
 @dataclass(frozen=True)
+class EndTaper:
+    """G76's tapered thread ends (E, L), as LinuxCNC cuts them: over ``length`` of the
+    groove at each end asked for, every pass ramps x out by the thread's depth (the last
+    pass from full depth to the crest, earlier ones past it at the same angle), z still on
+    the lead. ``blend``: half-width (m of groove) of the rounded corner where a ramp leaves
+    the pass's depth, fitted to x's limits by ends.fit_end_taper (0: a sharp corner)."""
+
+    length: float
+    entry: bool
+    exit: bool
+    blend: float = 0.0
+
+
+@dataclass(frozen=True)
 class ThreadSpec:
     """A thread job in SI units (m, rad, rad/s) and program coordinates; pitch is the lead
     per spindle revolution, origin the axis (x, z) that puts the tip on the spindle axis at
@@ -63,12 +78,13 @@ class ThreadSpec:
     taper: float = 0.0  # diameter change per length into the part: external widens, internal narrows
     vibration: ThreadVibration | None = None
     origin: tuple[float, float] = (0.0, 0.0)
+    end_taper: EndTaper | None = None
 
     @classmethod
     def from_job(cls, job: SimpleNamespace, origin: tuple[float, float] = (0.0, 0.0)) -> ThreadSpec:
         """From a parsed job (cnc_msgs_py.job.parse_job, already SI) and the axis position
         of its program origin."""
-        t, vib = job.thread, job.vibration
+        t, vib, ends = job.thread, job.vibration, job.thread.end_taper
         if vib is not None and vib.D is None:
             raise ThreadError(
                 "vibration.E", "a thread vibration takes D (vibrations per revolution), not E and R"
@@ -81,6 +97,7 @@ class ThreadSpec:
             spring_passes=t.spring_passes, starts=t.starts, internal=t.internal, taper=t.taper,
             vibration=None if vib is None else ThreadVibration(vib.D, vib.Q, vib.phase_shift, vib.D_step),
             origin=origin,
+            end_taper=None if ends is None else EndTaper(ends.length, *tapered_ends(ends.ends)),
         )
 
     @property

@@ -32,6 +32,7 @@ from cnc_msgs_py.schema import JobError
 from cnc_planner.kinds.thread.planning import plan_thread
 from cnc_planner.kinds.thread.spec import ThreadError, ThreadSpec
 from cnc_planner.motion.builder import PlanBuilder
+from cnc_planner.planning import plan_job
 from support import cnc, load_report
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -87,6 +88,12 @@ def test_end_taper_is_checked_and_the_ramp_must_fit_x():
     spec = ThreadSpec.from_job(parse_job(job("exit", 0.2)))  # x cannot turn onto 0.92 mm over 0.2 mm at the lead
     with pytest.raises(ThreadError, match=r"^thread\.end_taper\.length: 0\.2 mm is too short .* needs >= 0\.[0-9]+ mm"):
         plan_thread(PlanBuilder(load_machine("lathe"), {"x": 7e-3, "z": 4e-3}), spec, compensate=False)
+    # on a lathe whose x follows the vibration alone at 600 rpm, not with the ramp's corner on it
+    soft = {**job("both", vibration={"D": 1.5, "Q": 1.2, "phase_shift": 180}), "machine": "lathe_soft"}
+    plan_job(parse_job({**soft, "thread": {**THREAD, "passes": 5}}), load_machine("lathe_soft"))
+    with pytest.raises(JobError, match=r"^vibration\.D: the x axis cannot follow .* on the tapered ends' ramp "
+                                       r"at 600 rpm .*; max spindle speed 5[0-9]{2} rpm$"):
+        plan_job(parse_job({**soft, "thread": {**soft["thread"], "passes": 5}}), load_machine("lathe_soft"))
 
 
 def test_g76_e_and_l_are_linuxcncs_tapered_ends():

@@ -292,9 +292,10 @@ def _check_follow(spec: ThreadSpec, machine: Machine) -> None:
                     worst = (top, joint, quantity, need[order], limit, unit, p)
     top, joint, quantity, need, limit, unit, p = worst
     if omega > top:
+        ramp = " on the tapered ends' ramp" if joint == "x" and spec.end_taper is not None else ""
         raise ThreadError(
             "vibration.D", f"the {joint} axis cannot follow {p.per_rev:g} vibrations/rev of {_mm(p.amplitude)} "
-            f"(pass {p.index + 1}) at {_rpm(omega):.0f} rpm (needs {quantity} {need:.3g} {unit}, over "
+            f"(pass {p.index + 1}){ramp} at {_rpm(omega):.0f} rpm (needs {quantity} {need:.3g} {unit}, over "
             f"{WAVE_LIMIT_SHARE:.0%} of its {limit:g} {unit}: the rest is the compensated command's); "
             f"max spindle speed {math.floor(_rpm(top)):.0f} rpm"
         )

@@ -108,9 +108,9 @@ class Groove:
         (z less the flank offset of the depth read) takes as r * tan(infeed_angle) further
         along the feed: so an exit ramp is read past its start and needs no margin, an entry
         ramp up to depth * tan(infeed_angle) past its end, which is left out with it."""
-        s = self.direction
-        lo = max(0.0, s * self.start_z + self.taper_length + self.depth * math.tan(self.infeed_angle)) \
-            if self.taper_entry else 0.0
+        s, lo = self.direction, 0.0
+        if self.taper_entry:
+            lo = max(lo, s * self.start_z + self.taper_length + self.depth * math.tan(self.infeed_angle))
         return lo, s * self.end_z - (self.taper_length if self.taper_exit else 0.0)
 
     def grid(self) -> np.ndarray:

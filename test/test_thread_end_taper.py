@@ -42,6 +42,7 @@ import oracle  # noqa: E402
 
 ORACLE = ROOT / "test" / "gcode_oracle" / "lathe_g76_taper.ngc"
 TAN = math.tan(math.radians(29.5))
+G76_AT = "(CNC,MACHINE lathe)\nG18 G21 G90 G8\nS600 M3\nG0 X12 Z5\n"  # a G76 on line 5 follows
 THREAD = {"start_z": 2.5, "end_z": -9.0, "major_radius": 6.0, "pitch": 1.5, "depth": 0.92, "passes": 4,
           "infeed_angle": 29.5, "spring_passes": 1}
 
@@ -107,11 +108,24 @@ def test_g76_e_and_l_are_linuxcncs_tapered_ends():
             " tapered both over 2 mm" in lines[2], "tapered" not in lines[3]] == [True] * 4
 
 
-def test_g76_refuses_an_l_that_names_no_ends(tmp_path):
+@pytest.mark.parametrize("words, ends", [("E2 L4", None), ("E2 L5", "entry"), ("E2 L6", "exit"), ("E2 L7", "both"),
+                                         ("E-1 L3", None), ("E0 L2", None), ("E2 L0", None), ("E2.5", None)])
+def test_g76_reads_e_and_l_as_rs274_does(tmp_path, words, ends):
+    """L by its bits (1 entry, 2 exit) and E <= 0 as none, as rs274 -g feeds them (it angles
+    L5's entry and L7's both ends, and neither for L4 or E-1)."""
+    path = tmp_path / "g76.ngc"
+    path.write_text(f"{G76_AT}G76 P1.5 Z-14 I-1 J0.3 K0.9 {words}\nM2\n")
+    ops = parse_job(job_document(path)).program.operations
+    thread = next(doc["thread"] for _, op, doc in ops if op.kind == "thread")
+    assert thread.get("end_taper") == (None if ends is None else {"length": 2.0, "ends": ends})
+
+
+@pytest.mark.parametrize("l_word", ["-1", "1.5"])
+def test_g76_refuses_an_l_rs274_refuses(tmp_path, l_word):
+    """rs274 -g: "Negative l word used", "Non integer value for integer"."""
     path = tmp_path / "bad.ngc"
-    path.write_text("(CNC,MACHINE lathe)\nG18 G21 G90 G8\nS600 M3\nG0 X12 Z5\n"
-                    "G76 P1.5 Z-14 I-1 J0.3 K0.9 E2 L4\nM2\n")
-    with pytest.raises(JobError, match=r"line 5: L4: which ends taper must be 0 \(none\), 1 \(entry\)"):
+    path.write_text(f"{G76_AT}G76 P1.5 Z-14 I-1 J0.3 K0.9 E2 L{l_word}\nM2\n")
+    with pytest.raises(JobError, match=rf"line 5: L{l_word}: which ends taper must be a whole number >= 0"):
         parse_job(job_document(path))
 
 

@@ -8,8 +8,8 @@
 - G76: our thread cycle. The major radius is the drive line plus I, the cumulative depths
   are LinuxCNC's J * k^(1/R) capped at K; when those are our own degression (K * sqrt(k/n))
   within 1 um the block says ``passes: n``, else it lists ``depths``. E and L become
-  ``end_taper`` (E its length along the drive line, L 1/2/3 its ends entry/exit/both); E0 or
-  L0 is the plain thread.
+  ``end_taper`` (E its length along the drive line, L 1/2/3 its ends entry/exit/both); E <= 0
+  or L0 is the plain thread, as in LinuxCNC.
 - G71: our roughing; its profile is the subroutine's path (or the P..Q blocks), its stock the
   program's ``stock`` outline when given (the profile clipped to the stock's right end),
   else G71's own assumption, the cylinder at the cycle's start point.
@@ -23,7 +23,6 @@ from ..kinds.thread import END_TAPER_ENDS
 R_GAP_MM = 2.0
 DEPTH_MATCH_MM = 1.0e-3  # G76 depths this close to ours become ``passes: n``
 MAX_PASSES = 100
-G76_TAPER_ENDS = {0.0: None, **{k + 1.0: ends for k, ends in enumerate(END_TAPER_ENDS)}}  # G76's L: end_taper.ends
 
 
 def drill_plane(r: float, z: float) -> dict:
@@ -49,6 +48,12 @@ def g76_depths(first: float, full: float, degression: float) -> list[float]:
         k += 1
         if k > MAX_PASSES:
             raise ValueError(f"reaches K only after more than {MAX_PASSES} passes")
+
+
+def g76_taper_ends(l_word: int) -> str | None:
+    """The thread's end_taper.ends of G76's L as LinuxCNC reads it, by its bits: 1 the entry,
+    2 the exit (L1, L2, L3 as documented; L4 and up by the same two bits); None: neither."""
+    return (None, *END_TAPER_ENDS)[l_word & 3]  # END_TAPER_ENDS: entry, exit, both
 
 
 def thread_passes(depths: list[float]) -> dict:

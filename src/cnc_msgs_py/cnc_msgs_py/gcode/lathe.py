@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Iterable
 
 from . import arcs
 from ..kinds.turn import Frame
-from .cycles import G76_TAPER_ENDS, clip_to_stock, g76_depths, thread_passes
+from .cycles import clip_to_stock, g76_depths, g76_taper_ends, thread_passes
 from .lexer import Block, GcodeError, word_text
 from .modal import check_groups
 
@@ -49,11 +49,9 @@ def g76(tr: "Translator", b: Block, used: set[str]) -> None:
     angle = _word(b, used, "Q", "G76", 0.0)
     spring = _word(b, used, "H", "G76", 0.0)
     taper, ends = s.length(_word(b, used, "E", "G76", 0.0)), _word(b, used, "L", "G76", 0.0)
-    if taper < 0.0:
-        raise GcodeError(b.line, word_text("E", b.words["E"]), "the taper length must be >= 0")
-    if ends not in G76_TAPER_ENDS:
-        raise GcodeError(b.line, word_text("L", ends), "which ends taper must be 0 (none), 1 (entry), "
-                         "2 (exit) or 3 (both)")
+    if ends != int(ends) or ends < 0:  # LinuxCNC: "Negative l word used", "Non integer value for integer"
+        raise GcodeError(b.line, word_text("L", ends), "which ends taper must be a whole number >= 0 "
+                         "(0 none, 1 entry, 2 exit, 3 both)")
     if i >= 0.0:
         raise GcodeError(b.line, word_text("I", b.words["I"]), "internal threads (I >= 0) are not supported yet")
     if not 0.0 < j <= k:
@@ -68,8 +66,9 @@ def g76(tr: "Translator", b: Block, used: set[str]) -> None:
         raise GcodeError(b.line, word_text("J", b.words["J"]), str(err)) from None
     thread = {"start_z": z0, "end_z": end_z, "major_radius": x + i, "pitch": pitch, "depth": k,
               **thread_passes(depths), "infeed_angle": angle, "spring_passes": int(spring)}
-    if taper > 0.0 and G76_TAPER_ENDS[ends] is not None:  # E0 or L0: the plain thread, as in LinuxCNC
-        thread["end_taper"] = {"length": taper, "ends": G76_TAPER_ENDS[ends]}
+    tapered = g76_taper_ends(int(ends))
+    if taper > 0.0 and tapered is not None:  # E <= 0 or L0: the plain thread, as in LinuxCNC
+        thread["end_taper"] = {"length": taper, "ends": tapered}
     tr._begin(b.line, "thread", ("G76", b.line), thread)
     tr._flush()
     # our cycle ends back at its start on the drive line

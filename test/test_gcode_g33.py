@@ -1,4 +1,5 @@
-"""G33, moves locked to the spindle (cnc_msgs_py.gcode.spindle_sync, the sync kind).
+"""G33, moves locked to the spindle, and G33.1, rigid tapping (cnc_msgs_py.gcode.spindle_sync,
+the sync kind).
 
 - By hand: G33 K2 at S600 feeds 2 mm x 10 rev/s = 20 mm/s along Z; every pass leaves its
   start at the spindle's index (angle a whole number of turns) and its moves run locked:
@@ -9,6 +10,10 @@
   in order within 1 um, its synchronised feeds our sync moves with their K.
 - LinuxCNC's threading.ngc plans on the shipped lathe (bench/results/linuxcnc_examples.json).
 - Refusals: K missing, the spindle off, G96, compensation on, a lead faster than an axis.
+- G33.1 by hand on mill3 (S500 K1.25: 10.42 mm/s): Z + K * turns is constant from the index
+  to the return, through the spindle's reversal; the bottom exact, where the spindle stands;
+  the spindle at -500 rpm coming out and forward again after; test/gcode_oracle/mill_g33_1.ngc
+  against rs274's RIGID_TAP calls.
 """
 from __future__ import annotations
 
@@ -37,8 +42,8 @@ TIP_TOLERANCE_MM = 1e-3
 TWO_PI = 2.0 * math.pi
 
 
-def _job(moves: list[dict], rpm: float = 600.0):
-    return parse_job({"schema": "cnc_job/1", "job_id": "g33", "kind": "sync", "machine": "lathe",
+def _job(moves: list[dict], rpm: float = 600.0, machine: str = "lathe"):
+    return parse_job({"schema": "cnc_job/1", "job_id": "g33", "kind": "sync", "machine": machine,
                       "spindle_rpm": rpm, "tool": {}, "sync": moves})
 
 
@@ -118,7 +123,7 @@ def test_a_lead_faster_than_an_axis_and_a_move_too_short_for_its_ramps_are_refus
     assert str(err.value).startswith("sync[1].sync: too short to be locked to the spindle")
     with pytest.raises(JobError) as err:
         _job([{"rapid": {"x": 12, "z": 5}}, {"sync": {"z": 4.9}}])
-    assert str(err.value).startswith("sync[1].lead: required for a sync move")
+    assert str(err.value).startswith("sync[1].lead: required for a sync or tap move")
 
 
 def test_every_feed_end_and_rapid_is_linuxcncs_its_synchronised_feeds_our_sync_moves():
@@ -143,3 +148,68 @@ def test_linuxcncs_threading_ngc_plans_on_the_lathe():
     path = examples.NCFILES / "threading.ngc"
     if path.is_file():  # LinuxCNC installed: plan it again
         assert examples.ours(path, "lathe")[0] == "plans"
+
+
+TAPS = [{"rapid": {"x": 10, "y": 5, "z": 2}}, {"tap": {"z": -10}, "lead": 1.25}, {"rapid": {"x": 30}},
+        {"tap": {"z": -6}, "lead": 1.25}, {"rapid": {"z": 10}}]
+
+
+def test_a_rigid_tap_follows_the_spindle_down_through_its_reversal_and_out():
+    job = parse_job({"schema": "cnc_job/1", "job_id": "tap", "kind": "sync", "machine": "mill3", "spindle_rpm": 500,
+                     "tool": {"diameter": 8}, "sync": TAPS})
+    plan = plan_job(job, load_machine("mill3"))
+    starts = [e.time for e in plan.events if e.name == "sync_pass"]
+    t = np.arange(0.0, plan.duration, 1e-4)
+    p, v, a = plan.sample(t)
+    x, z, spindle = (plan.joints.index(j) for j in ("x", "z", SPINDLE))
+    omega = 500.0 * TWO_PI / 60.0
+    for start, hole, bottom in zip(starts, (10e-3, 30e-3), (-10e-3, -6e-3)):
+        sp = plan.sample(np.array([start]))[0][0, spindle]
+        assert sp / TWO_PI == pytest.approx(round(sp / TWO_PI), abs=1e-9)  # at the index
+        tap = (t > start) & (p[:, x] == hole) & (p[:, z] < 1.9e-3)  # past the ramps on and off (0.07 mm)
+        assert np.min(p[tap, z]) == pytest.approx(bottom, abs=1e-12)  # exactly the bottom
+        groove = p[tap, z] + 1.25e-3 * p[tap, spindle] / TWO_PI
+        assert np.ptp(groove) < 1e-12  # locked all the way, the reversal included
+        assert np.max(-v[tap, z]) == pytest.approx(1.25e-3 * omega / TWO_PI, abs=1e-12)  # 10.42 mm/s in
+        assert np.max(v[tap, z]) == pytest.approx(1.25e-3 * omega / TWO_PI, abs=1e-12)  # and out
+        assert np.min(v[tap, spindle]) == pytest.approx(-omega, abs=1e-9)  # the spindle backwards out
+        assert abs(v[tap, spindle][np.argmin(p[tap, z])]) < 0.01 * omega  # standing at the bottom
+        # the spindle's limits through the lead: |a_z| = K / 2pi * 500 rad/s^2 at most
+        assert np.max(np.abs(a[tap & (p[:, z] < 1e-3), z])) <= 1.25e-3 / TWO_PI * 500.0 + 1e-9
+    after = t > starts[0] + 1.5
+    assert np.max(v[after, spindle]) == pytest.approx(omega)  # forward again for the next hole
+
+
+def test_g33_1_against_rs274s_rigid_taps():
+    output = oracle.recorded(examples.RS274_RECORDED)((ROOT / "test" / "gcode_oracle" / "mill_g33_1.ngc").read_text())
+    theirs = [tuple(float(v) for v in line.split("RIGID_TAP(")[1].rstrip(")").split(","))
+              for line in output.splitlines() if "RIGID_TAP(" in line]
+    moves, error = oracle.canonical_moves(output)
+    assert error is None and len(theirs) == 2
+    job = parse_job(job_document(ROOT / "test" / "gcode_oracle" / "mill_g33_1.ngc"))
+    (_, _, doc), = job.program.operations
+    rapids = [tuple(m["rapid"][a] for a in "xyz") for m in doc["sync"] if "rapid" in m]
+    taps = [(m["tap"]["z"], m["lead"]) for m in doc["sync"] if "tap" in m]
+    assert [(z, 1.25) for _, _, z in theirs] == taps
+    assert rapids == [m.end for m in moves]  # the rapid after a tap leaves from where it started
+    plan_job(job, load_machine("mill3"))
+
+
+@pytest.mark.parametrize("text,reason", [
+    ("S500 M3\nG0 X10 Y5 Z2\nG33.1 X11 Z-5 K1", "line 4: G33.1: a rigid tap runs along Z: move X before it"),
+    ("S500 M3\nG0 X10 Y5 Z2\nG33.1 Z-5 K1 I2", "line 4: I2: a faster retract is not supported"),
+    ("G0 X10 Y5 Z2\nG33.1 Z-5 K1", "line 3: G33.1: the spindle is off"),
+    ("S500 M3\nG0 X10 Y5 Z2\nG84 Z-5 R2", "line 4: G84: tapping is not a cycle of ours: G33.1 taps rigidly"),
+])
+def test_tap_refusals(text, reason):
+    with pytest.raises(GcodeError) as err:
+        translate("G21 G17 G90\n" + text + "\nM2", Context("t", "mill3"))
+    assert str(err.value).startswith(reason), str(err.value)
+
+
+def test_a_tap_too_shallow_for_the_spindles_reversal_is_refused():
+    with pytest.raises(JobError) as err:  # 1.25 mm/rev at 500 rpm reverses over ~0.09 mm
+        plan_job(_job([{"rapid": {"x": 10, "y": 5, "z": 2}}, {"tap": {"z": 1.95}, "lead": 1.25}], 500.0, "mill3"),
+                 load_machine("mill3"))
+    assert str(err.value).startswith("sync[1].tap: too shallow to tap at this lead and speed")
+

@@ -47,3 +47,29 @@ def test_g33_passes_locked_to_the_spindle_in_one_groove_on_feedback(tmp_path):
         assert np.ptp(groove) < 10e-6
         grooves.append(float(np.median(groove)) % 2e-3)
     assert abs(grooves[1] - grooves[0]) < 2e-6
+
+
+def test_g33_1_rigid_taps_follow_the_spindle_through_its_reversal_on_feedback(tmp_path):
+    """test/gcode_oracle/mill_g33_1.ngc on mill3 (two M8x1.25 holes at S500): each tap found
+    on feedback, 1.25 mm per revolution of the measured spindle angle in and out, locked across
+    the reversal, the bottom within 0.02 mm, the spindle measured turning backwards."""
+    program = ROOT / "test" / "gcode_oracle" / "mill_g33_1.ngc"
+    result = cnc("cnc-run", program, "--machine", "mill3", "--out", tmp_path / "run")
+    assert result.returncode == 0, result.stderr[-3000:]
+    (op,) = load_report(tmp_path / "run")["program"]["operations"]
+    sync = op["spindle_sync"]
+    assert op["kind"] == "sync" and sync["verdict"]["passed"], sync["verdict"]
+    assert [t["depth_mm"] for t in sync["taps"]] == [12.0, 8.0]
+    for tap in sync["taps"]:
+        assert tap["measured_lead_in_mm"] == pytest.approx(1.25, rel=1e-3)
+        assert tap["measured_lead_out_mm"] == pytest.approx(1.25, rel=1e-3)
+        assert tap["lock_error_mm"] < 0.01 and abs(tap["reached_mm"] - tap["depth_mm"]) < 0.01
+        assert tap["reversed_rpm"] < -490.0
+
+    run = read_run(tmp_path / "run" / "bag")
+    x, z, spindle = (run.feedback[:, run.column(j)] for j in ("x", "z", "spindle"))
+    theta = np.unwrap(spindle)
+    first = (np.abs(x - 10e-3) < 1e-6) & (z < 1.9e-3)  # the first hole, past the ramps
+    groove = z[first] + 1.25e-3 * theta[first] / (2 * math.pi)
+    assert np.ptp(groove) < 10e-6  # one helix in and out
+    assert z[first].min() == pytest.approx(-10e-3, abs=10e-6)

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from .lexer import Block, GcodeError, word_text
 
 ROUGHING_CYCLES = (71.0, 71.1, 71.2, 72.0, 72.1, 72.2)  # G71/G72 and their .1/.2 variants (gcode/lathe.py)
-MOTION = {0.0, 1.0, 2.0, 3.0, 5.1, 33.0, 70.0, *ROUGHING_CYCLES, 73.0, 76.0, 80.0, 81.0, 82.0, 83.0}
+MOTION = {0.0, 1.0, 2.0, 3.0, 5.1, 33.0, 33.1, 70.0, *ROUGHING_CYCLES, 73.0, 76.0, 80.0, 81.0, 82.0, 83.0}
 DRILL_CYCLES = {73.0, 81.0, 82.0, 83.0}
 G_GROUPS: dict[float, str] = {
     **{g: "motion" for g in MOTION},
@@ -33,8 +33,7 @@ G_GROUPS: dict[float, str] = {
     98.0: "canned cycle return", 99.0: "canned cycle return",
 }
 G_REFUSED: dict[float, str] = {
-    33.1: "rigid tapping is not a method of ours: the drill method does not reverse the spindle in step with Z",
-    84.0: "tapping is not a method of ours: the drill method does not reverse the spindle in step with Z",
+    84.0: "tapping is not a cycle of ours: G33.1 taps rigidly, one hole at a time",
     93.0: "inverse time feed is not supported",
 }
 # probing moves stop on a probe's signal: our machine descriptions (and the bridge's drives)

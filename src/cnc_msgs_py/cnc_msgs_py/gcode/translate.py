@@ -365,9 +365,9 @@ class Translator:
                 k = next(k for k in "XYZ" if k in b.words)
                 raise GcodeError(b.line, word_text(k, b.words[k]), "no motion mode in force (give G0 or G1)")
             return
-        if s.motion == spindle_sync.CODE:
+        if s.motion in spindle_sync.CODES:
             if b.has_axes():
-                spindle_sync.g33(self, b, used)
+                spindle_sync.locked(self, b, used)
             return
         if 53.0 in g and s.motion not in (0.0, 1.0):
             raise GcodeError(b.line, "G53", "needs G0 or G1 in force (machine coordinates are for straight moves)")

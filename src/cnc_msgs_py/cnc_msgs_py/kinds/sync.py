@@ -5,7 +5,11 @@ mm along its straight path per spindle revolution. Consecutive sync moves are on
 waits at rest for the spindle's index (angle 0), then runs on without stopping, so that
 every pass of a thread cut by hand starts at the same spindle angle and lands in one
 groove, shifted only as its programmed start is. The spindle turns at one rpm (a surface
-speed would change the lead's speed along a pass) and nothing is vibrated."""
+speed would change the lead's speed along a pass) and nothing is vibrated.
+
+A ``tap`` move is a rigid tap (LinuxCNC's G33.1) from where the tool stands to ``tap.z``
+and back: in at ``lead`` per revolution, the spindle reversed at the bottom, out locked to
+it; the spindle turns forward again after it."""
 from __future__ import annotations
 
 from types import SimpleNamespace
@@ -18,6 +22,7 @@ from .thread import MIN_PITCH
 SYNC = List(Obj({
     **MOVE_FIELDS,
     "sync": Obj(MOVE_TARGET.fields, default=None),
+    "tap": Obj({"z": Num("mm")}, default=None),  # a rigid tap's bottom: in and back out
     "lead": Num("mm", gt=0.0, min=MIN_PITCH, max=100.0, default=None),  # along the path, per revolution
 }), min_len=1, max_len=MAX_LIST, default=None)
 
@@ -25,12 +30,13 @@ SYNC = List(Obj({
 def check(job: SimpleNamespace) -> None:
     """A move program's rules, a lead on every sync move and none elsewhere, at least one
     sync move, and the spindle turning."""
-    check_moves(job, job.sync, "sync", (*MOTIONS, "sync"))
+    check_moves(job, job.sync, "sync", (*MOTIONS, "sync", "tap"))
     for i, move in enumerate(job.sync):
-        if (move.sync is None) != (move.lead is None):
-            raise JobError(f"sync[{i}].lead", "required for a sync move (mm per revolution)" if move.lead is None
-                           else "only a sync move takes a lead")
-    if not any(move.sync is not None for move in job.sync):
+        locked = move.sync is not None or move.tap is not None
+        if locked != (move.lead is not None):
+            raise JobError(f"sync[{i}].lead", "required for a sync or tap move (mm per revolution)" if locked
+                           else "only a sync or tap move takes a lead")
+    if not any(move.sync is not None or move.tap is not None for move in job.sync):
         raise JobError("sync", "no move locked to the spindle (a program without one is a move job)")
     if job.vibration is not None:
         raise JobError("vibration", "a move locked to the spindle is not vibrated")

@@ -25,22 +25,25 @@ def move_targets(job: SimpleNamespace, machine: Machine, kin: Kinematics,
         if move.dwell is not None:
             targets.append(None)
             continue
-        kind = next(k for k in ("rapid", "linear", "sync") if getattr(move, k, None) is not None)
+        kind = next(k for k in ("rapid", "linear", "sync", "tap") if getattr(move, k, None) is not None)
         target = getattr(move, kind)
         field = f"{block}[{i}].{kind}"
+        before = dict(tip)
         for key in program_axes(machine, target, field):
             tip[key] = getattr(target, key)
         axes = to_axes(kin, tip, field)
         check_travel(machine, axes, field)
         targets.append(axes)
+        if kind == "tap":  # a tap returns to where it started: its target is its bottom
+            tip = before
     return targets
 
 
 def plan_move(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin: Kinematics,
-              block: str = "move", sync: Callable[[PlanBuilder, int, list], None] | None = None) -> None:
+              block: str = "move", sync: Callable[[PlanBuilder, int, list], bool] | None = None) -> None:
     """A list of rapid, linear and dwell moves in absolute program coordinates; ``block``: the
-    job's list of moves, whose synchronised ones (a sync job's) ``sync`` plans, given the
-    builder, the move's index and every move's axis target.
+    job's list of moves, the synchronised ones of which (a sync job's) ``sync`` plans, given
+    the builder, the move's index and every move's axis target (True: that move is its own).
 
     At a surface speed (G96) the spindle starts at the speed for where the tool stands; from
     each rapid's start it ramps to the speed for the rapid's end point, as Fanuc's G96
@@ -57,8 +60,7 @@ def plan_move(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin:
         ramp_to_radius(builder, css, radius_of(kin, {}, here))
     for i, (move, axes) in enumerate(zip(getattr(job, block), targets)):
         start = builder.end_time()
-        if getattr(move, "sync", None) is not None:
-            sync(builder, i, targets)
+        if sync is not None and sync(builder, i, targets):
             continue
         if axes is None:
             for joint in machine.linear_axes:

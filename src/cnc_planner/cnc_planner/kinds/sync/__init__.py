@@ -1,6 +1,7 @@
-"""Move programs with passes locked to the spindle's angle (LinuxCNC's G33), on every layout
-whose spindle turns: each pass waits for the spindle's index and runs on at its lead per
-revolution, so that the passes of a thread cut by hand land in one groove."""
+"""Move programs with passes locked to the spindle's angle (LinuxCNC's G33) and rigid taps
+(G33.1), on every layout: each pass waits for the spindle's index and runs on at its lead
+per revolution, so that the passes of a thread cut by hand land in one groove; a tap
+follows the spindle's reversal at the bottom."""
 from __future__ import annotations
 
 from types import SimpleNamespace
@@ -10,7 +11,8 @@ from cnc_planner.kinds.kind import JobKind, ProgressCount, ReportSection
 
 
 def _passes(job: SimpleNamespace) -> int:
-    return len(pass_runs(job.sync))
+    """Passes and taps."""
+    return len(pass_runs(job.sync)) + sum(move.tap is not None for move in job.sync)
 
 
 KIND = JobKind(

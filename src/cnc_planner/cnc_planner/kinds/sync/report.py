@@ -12,7 +12,7 @@ from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_msgs_py.units import to_mm
 
 from cnc_analysis.recording import Run
-from cnc_analysis.spindle_sync import LOCK_TOLERANCE, SyncPass, judge_passes
+from cnc_analysis.spindle_sync import LOCK_TOLERANCE, SyncPass, Tap, judge_passes, judge_taps
 from cnc_analysis.verdict import verdict
 
 from cnc_planner.kinds.kind import Card
@@ -20,33 +20,42 @@ from cnc_planner.kinds.move.planning import move_targets
 from cnc_planner.kinds.sync.planning import pass_runs
 from cnc_planner.kinematics import Kinematics
 
-CRITERION = (f"on feedback: every synchronised move within {to_mm(LOCK_TOLERANCE):g} mm of its lead per spindle "
-             f"revolution from the index, the passes of a thread within {to_mm(LOCK_TOLERANCE):g} mm of one groove")
+CRITERION = (f"on feedback: every synchronised move and tap within {to_mm(LOCK_TOLERANCE):g} mm of its lead per "
+             f"spindle revolution from the index, the passes of a thread within {to_mm(LOCK_TOLERANCE):g} mm of one "
+             f"groove, a tap's bottom within {to_mm(LOCK_TOLERANCE):g} mm of its depth")
 
 
-def job_passes(job: SimpleNamespace, machine: Machine, start: dict[str, float]) -> tuple[list[str], list[SyncPass]]:
-    """The job's passes in axis coordinates (the linear axes, in order), from the machine at ``start``."""
+def job_passes(job: SimpleNamespace, machine: Machine,
+               start: dict[str, float]) -> tuple[list[str], list[SyncPass], list[Tap]]:
+    """The job's passes and taps in axis coordinates (the linear axes, in order), from the
+    machine at ``start``."""
     joints = list(machine.linear_axes)
     targets = move_targets(job, machine, Kinematics(machine, job.setup, job.tool), start, "sync")
     here = np.array([start.get(j, 0.0) for j in joints])
     before: list[np.ndarray] = []
-    for target in targets:  # where each move starts: the last target before it
+    for move, target in zip(job.sync, targets):  # where each move starts (a tap ends there too)
         before.append(here)
-        here = here if target is None else np.array([target[j] for j in joints])
+        here = here if target is None or move.tap is not None else np.array([target[j] for j in joints])
     passes = [SyncPass(before[i], [np.array([targets[k][j] for j in joints]) for k in range(i, last)],
                        [job.sync[k].lead for k in range(i, last)]) for i, last in pass_runs(job.sync).items()]
-    return joints, passes
+    taps = [Tap(before[i], np.array([targets[i][j] for j in joints]), move.lead)
+            for i, move in enumerate(job.sync) if move.tap is not None]
+    return joints, passes, taps
 
 
 def sync_section(run: Run, job: SimpleNamespace, machine: Machine, window: np.ndarray) -> dict:
-    """The passes on feedback and the verdict."""
-    joints, passes = job_passes(job, machine, run.feedback_at(window))
+    """The passes and taps on feedback and the verdict."""
+    joints, passes, taps = job_passes(job, machine, run.feedback_at(window))
     feedback = run.feedback[window]
-    section = judge_passes(run.feedback_t[window], feedback[:, [run.column(j) for j in joints]],
-                           feedback[:, run.column(SPINDLE)], passes)
-    section["verdict"] = verdict(CRITERION, section.pop("failures"), (
-        f"{len(section['passes'])} passes, each move within {section['max_lock_error_mm']:.4f} mm of its lock, "
-        f"one groove within {section['groove_spread_mm']:.4f} mm on feedback"))
+    samples = (run.feedback_t[window], feedback[:, [run.column(j) for j in joints]], feedback[:, run.column(SPINDLE)])
+    section = judge_passes(*samples, passes)
+    tapped = judge_taps(*samples, taps)
+    section["taps"] = tapped["taps"]
+    section["max_lock_error_mm"] = max([section["max_lock_error_mm"]] + [k["lock_error_mm"] for k in tapped["taps"]])
+    section["verdict"] = verdict(CRITERION, section.pop("failures") + tapped["failures"], (
+        f"{len(section['passes'])} passes and {len(section['taps'])} taps, each within "
+        f"{section['max_lock_error_mm']:.4f} mm of its lock, one groove within {section['groove_spread_mm']:.4f} mm "
+        "on feedback"))
     return section
 
 

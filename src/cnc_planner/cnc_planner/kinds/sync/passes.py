@@ -56,7 +56,7 @@ def ramp(u: np.ndarray, width: float) -> tuple[np.ndarray, np.ndarray, np.ndarra
 
 
 @dataclass(frozen=True)
-class SyncPass:
+class PassMotion:
     """One pass's motion from the index: per axis (rows of ``steps``) the velocity steps at
     the instants ``centres`` (s after the index), each ramped over its ``widths``."""
 
@@ -83,15 +83,15 @@ class SyncPass:
 class _Axis(WritingSampler):
     """One axis of a pass as a timeline piece."""
 
-    def __init__(self, sync: SyncPass, axis: int) -> None:
+    def __init__(self, sync: PassMotion, axis: int) -> None:
         self.sync, self.axis = sync, axis
 
     def write(self, t: np.ndarray, out: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
         out[0][:], out[1][:], out[2][:] = self.sync.state(t, self.axis)
 
 
-def sync_pass(machine: Machine, joints: list[str], start: np.ndarray, points: list[np.ndarray],
-              leads: list[float], speed: float, fields: list[str]) -> SyncPass:
+def pass_motion(machine: Machine, joints: list[str], start: np.ndarray, points: list[np.ndarray],
+                leads: list[float], speed: float, fields: list[str]) -> PassMotion:
     """The pass from ``start`` through ``points`` (axis positions, m), each move advancing
     its lead (m along its path per revolution) at spindle ``speed`` (rad/s).
 
@@ -127,7 +127,7 @@ def sync_pass(machine: Machine, joints: list[str], start: np.ndarray, points: li
         if centres[k + 1] - centres[k] < (widths[k] + widths[k + 1]) / 2.0:
             raise JobError(field, "too short to be locked to the spindle: the axes' ramps into and out of it "
                                   f"need {to_mm((widths[k] + widths[k + 1]) / 2.0 * np.linalg.norm(velocities[k + 1])):.3g} mm")
-    return SyncPass(np.asarray(start, dtype=float), steps, centres, widths)
+    return PassMotion(np.asarray(start, dtype=float), steps, centres, widths)
 
 
 def plan_pass(builder: PlanBuilder, joints: list[str], points: list[np.ndarray], leads: list[float],
@@ -138,7 +138,7 @@ def plan_pass(builder: PlanBuilder, joints: list[str], points: list[np.ndarray],
     spindle = builder.timelines[SPINDLE]
     speed = spindle.end_velocity
     start = np.array([builder.position(j) for j in joints])
-    sync = sync_pass(builder.machine, joints, start, points, leads, speed, fields)
+    sync = pass_motion(builder.machine, joints, start, points, leads, speed, fields)
     ready = max(builder.free_from(joints), builder.spindle_ready, spindle.end_time)
     index = ready + (-spindle.position_at(ready)) % TWO_PI / speed
     for axis, joint in enumerate(joints):

@@ -133,6 +133,10 @@ def test_linuxcncs_example_programs_plan_or_are_refused_with_their_reason():
     for name, r in machining.items():
         assert r["outcome"] in ("plans", "machine", "program", "language"), name
         assert r["outcome"] == "plans" or r["detail"].startswith("line "), (name, r["detail"])
+        if r["outcome"] == "program":  # only a stopped spindle: turning from the start, it plans or the machine refuses
+            assert "the spindle is off" in r["detail"], (name, r["detail"])
+            assert r["spindle_turning"].startswith("plans") or any(k in r["spindle_turning"]
+                                                                   for k in examples.MACHINE_REASONS), (name, r)
     assert set(recorded) - set(machining) == set(examples.LEFT_OUT)
     if not examples.NCFILES.is_dir():
         return  # LinuxCNC is not installed: the recorded outcomes are what there is to check
@@ -141,3 +145,5 @@ def test_linuxcncs_example_programs_plan_or_are_refused_with_their_reason():
         assert hashlib.sha256(path.read_bytes()).hexdigest() == r["sha256"], f"{name} is not the recorded file"
         if r["outcome"] != "plans":  # refusals are quick; planning them all takes minutes
             assert examples.ours(path, r["machine"]) == (r["outcome"], r["detail"]), name
+        if r["outcome"] == "program":
+            assert " ".join(examples.ours(path, r["machine"], examples.SPINDLE_TURNING)) == r["spindle_turning"], name

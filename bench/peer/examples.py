@@ -52,17 +52,22 @@ LEFT_OUT = {
 # program (a cutter too big for a compensated entry), a work offset it keeps none of, a probe
 MACHINE_REASONS = ("outside its travel", "has no", "exceeds the spindle", "cannot run", "than the tool radius",
                    "keeps no")
-# the program asks for what the machine must not do: drilling with the spindle off (a position
-# read before the program gives one is where the machine stands, as in LinuxCNC)
-PROGRAM_REASONS = ("the spindle is off", "position is unknown here", "from an unknown position")
+# the program asks for what our methods must not do: drill or turn with the spindle stopped (LinuxCNC
+# would run it; ``spindle_turning`` records what it does with S1000 M3 ahead of it). A position read
+# before the program gives one is where the machine stands, as in LinuxCNC: no refusal.
+PROGRAM_REASONS = ("the spindle is off",)
+
+
+SPINDLE_TURNING = "S1000 M3\n"  # (an operator's MDI before cycle start, as LinuxCNC keeps the spindle on)
 
 
 def machine_of(name: str) -> str:
     return "lathe" if name.startswith(LATHE) or name in LATHE else "mill3"
 
 
-def ours(path: Path, machine: str) -> tuple[str, str]:
-    """('plans', seconds) or ('machine' | 'program' | 'language', the refusal) for one file."""
+def ours(path: Path, machine: str, ahead: str = "") -> tuple[str, str]:
+    """('plans', seconds) or ('machine' | 'program' | 'language', the refusal) for one file;
+    ``ahead``: a line run before the program's first (as an operator's MDI before the start)."""
     from cnc_msgs_py.gcode.document import job_document
     from cnc_msgs_py.job import parse_job
     from cnc_msgs_py.machine import load_machine
@@ -70,7 +75,9 @@ def ours(path: Path, machine: str) -> tuple[str, str]:
 
     from cnc_planner.planning import plan_job
     try:
-        job = parse_job(job_document(path, machine))
+        doc = job_document(path, machine)
+        doc["program"]["gcode"] = ahead + doc["program"]["gcode"]
+        job = parse_job(doc)
         return "plans", f"{plan_job(job, load_machine(machine)).duration:.1f} s"
     except JobError as err:
         text = str(err)
@@ -98,6 +105,8 @@ def survey(folder: Path = NCFILES) -> dict:
         outcome, detail = ours(path, machine)
         rows[name] = {"sha256": sha, "machine": machine, "outcome": outcome, "detail": detail,
                       "rs274": rs274_verdict(path, machine)}
+        if outcome == "program":  # what it does with the spindle turning from the start
+            rows[name]["spindle_turning"] = " ".join(ours(path, machine, SPINDLE_TURNING))
     return rows
 
 

@@ -153,7 +153,8 @@ def test_pockets_cut_left_or_alone(code, pockets):
         assert lowest == pytest.approx(10.2e-3, abs=1e-9)
     else:  # into the groove, down to its bottom + D
         assert lowest == pytest.approx(6.2e-3, abs=1e-9)
-    over = [m for a, m in rough if abs(m.x - a[1]) < 1e-12 and m.x > 10.2e-3 + 1e-9]  # passes over the diameter
+    stock_x = max(x for _, x in t.stock)  # (the contour pass ends in air above it, D off the last shoulder)
+    over = [m for a, m in rough if abs(m.x - a[1]) < 1e-12 and 10.2e-3 + 1e-9 < m.x < stock_x]  # passes over the diameter
     assert (pockets == "only") == (not over)  # G71.2 roughs in the groove alone: G71.1 left the rest
     args = (list(map(tuple, t.stock)), list(map(tuple, t.profile)), plan.job_moves(), tuple(t.origin),
             t.finish_allowance, t.finish_allowance_z)

@@ -53,6 +53,7 @@ from .status import FINAL_STATES, Status, encode_cancel, encode_resume
 CONNECT_TIMEOUT_S = 10.0  # how long submit waits for a planner to listen on job_goal
 RESEND_S = 2.0  # a goal no status has answered within this is sent again (see submit)
 MATCH_OTHERS_S = 1.0  # then, at most this long for the other listeners on job_goal to match
+LISTENER_WAIT_S = 2.0  # cancel, resume: at most this long for the planner to listen first
 HISTORY_S = 0.5  # hear: the kept statuses that follow the first heard of a job (one burst)
 
 
@@ -144,10 +145,15 @@ class CncClient:
 
     def cancel(self, job_id: str) -> None:
         """Ask the planner to cancel a queued or running job (a jerk-limited stop)."""
-        deadline = time.monotonic() + 2.0
-        while self._cancel_pub.get_subscription_count() == 0 and time.monotonic() < deadline:
+        self._publish_when_heard(self._cancel_pub, encode_cancel(job_id))
+
+    def _publish_when_heard(self, publisher, text: str) -> None:
+        """Publish once a planner listens (up to LISTENER_WAIT_S): a request sent before the
+        topic has matched would be lost."""
+        deadline = time.monotonic() + LISTENER_WAIT_S
+        while publisher.get_subscription_count() == 0 and time.monotonic() < deadline:
             self._spin_once(0.05)
-        self._cancel_pub.publish(self._string(data=encode_cancel(job_id)))
+        publisher.publish(self._string(data=text))
 
     def resume(self, job_id: str) -> None:
         """Resume a program held at a pause (M0/M1): its job_id on job_resume. The statuses
@@ -161,12 +167,9 @@ class CncClient:
         if state != "held":
             heard = f"its latest status: {state}" if state else "no status heard for it"
             raise CncClientError(f"job '{job_id}' is not held ({heard}); only a program held at M0/M1 resumes")
-        deadline = time.monotonic() + 2.0
-        while self._resume_pub.get_subscription_count() == 0 and time.monotonic() < deadline:
-            self._spin_once(0.05)
         # this hold's statuses still on their way are old news (a later hold has passed one more mark)
         self._resumed[job_id] = self._statuses.pop(job_id)["detail"].get("hold", 0)
-        self._resume_pub.publish(self._string(data=encode_resume(job_id)))
+        self._publish_when_heard(self._resume_pub, encode_resume(job_id))
 
     def _state(self, job_id: str) -> str:
         latest = self._statuses.get(job_id)

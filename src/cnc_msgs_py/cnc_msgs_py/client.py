@@ -48,7 +48,7 @@ from . import topics
 from .bridge_lifecycle import BridgeLifecycle, CncClientError
 from .job import load_job
 from .liveliness import AliveWriters
-from .status import FINAL_STATES, Status, encode_cancel, encode_resume
+from .status import FINAL_STATES, Status, encode_cancel, encode_resume, holds_passed
 
 CONNECT_TIMEOUT_S = 10.0  # how long submit waits for a planner to listen on job_goal
 RESEND_S = 2.0  # a goal no status has answered within this is sent again (see submit)
@@ -168,7 +168,7 @@ class CncClient:
             heard = f"its latest status: {state}" if state else "no status heard for it"
             raise CncClientError(f"job '{job_id}' is not held ({heard}); only a program held at M0/M1 resumes")
         # this hold's statuses still on their way are old news (a later hold has passed one more mark)
-        self._resumed[job_id] = self._statuses.pop(job_id)["detail"].get("hold", 0)
+        self._resumed[job_id] = holds_passed(self._statuses.pop(job_id))
         self._publish_when_heard(self._resume_pub, encode_resume(job_id))
 
     def _state(self, job_id: str) -> str:
@@ -300,7 +300,7 @@ class CncClient:
         self._unanswered.pop(job_id, None)
         if self._final(job_id):
             return  # a job is final once; later copies (re-delivered latched ones) change nothing
-        if doc["state"] == "held" and doc["detail"].get("hold", 0) <= self._resumed.get(job_id, -1):
+        if doc["state"] == "held" and holds_passed(doc) <= self._resumed.get(job_id, -1):
             return  # the hold resumed already
         self._statuses[job_id] = dict(doc)
         for callback in self._callbacks:

@@ -12,6 +12,12 @@ STATES = ("accepted", "rejected", "running", "held", "succeeded", "aborted", "ca
 FINAL_STATES = ("rejected", "succeeded", "aborted", "canceled")
 
 
+def holds_passed(status: dict) -> int:
+    """How many program pauses (M0/M1, the ``hold`` marks its detail counts) a status has
+    passed: what tells one hold of a program from the next."""
+    return status["detail"].get("hold", 0)
+
+
 @dataclass
 class Status:
     """One job's state. ``progress`` is 0..1 of plan time; ``cycle_time_s`` once final.

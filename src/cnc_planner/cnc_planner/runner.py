@@ -32,6 +32,7 @@ from cnc_msgs_py.units import NS
 from cnc_analysis.recording import RECORDED, BagWriter
 
 from cnc_planner.nodes import Nodes, local_dds_env, node_command, topic_name  # noqa: F401 (the runner's API)
+from cnc_planner.pauses import Pauses
 
 QOS = {
     "job_goal": qos.JOB_GOAL, "job_cancel": qos.JOB_CANCEL, "job_status": qos.JOB_STATUS,
@@ -236,9 +237,18 @@ class Session:
     def wait(self, job_id: str, timeout: float, pauses: Pauses | None = None) -> dict:
         """Spin until the job is final; returns its final status document. ``pauses`` acts
         on the job's holds (M0/M1); without, a held job waits for a resume (``resume``)."""
-        self.spin_until(lambda: self.final_status(job_id) is not None or (pauses is not None and pauses.check()),
+        self.spin_until(lambda: self.final_status(job_id) is not None or (pauses is not None and self._act(pauses)),
                         timeout, f"job '{job_id}' did not end within {timeout:.0f} s")
         return self.final_status(job_id)
+
+    def _act(self, pauses: Pauses) -> bool:
+        """Resume or cancel the job at a hold when ``pauses`` says so; never ends the wait (False)."""
+        due = pauses.due(self.held(pauses.job_id), self.recorder.feedback_ns)
+        if due is not None:
+            action, said = due
+            print(said, flush=True)
+            getattr(self, action)(pauses.job_id)
+        return False
 
     def settle(self, status: dict, seconds: float = SETTLE_S) -> None:
         """Record until a little after a final status: the recorder may still be working
@@ -274,35 +284,6 @@ class Session:
         self.bag.close()
 
 
-class Pauses:
-    """What cnc-run does when its job holds at a program pause (M0/M1), having no operator to
-    press cycle start: resume it ``resume_after`` s of machine time later (each hold once), or
-    cancel it (None), saying so."""
-
-    def __init__(self, session: Session, job_id: str, resume_after: float | None) -> None:
-        self.session, self.job_id, self.resume_after = session, job_id, resume_after
-        self.handled = -1  # the holds passed (status detail) at the last one acted on
-        self.since_ns: int | None = None  # machine time the current hold was first heard
-
-    def check(self) -> bool:
-        """Act on a hold if one is due; never ends the wait (False)."""
-        held = self.session.held(self.job_id)
-        if held is None or held["detail"].get("hold", 0) <= self.handled:
-            return False
-        if self.resume_after is None:
-            print(f"cnc-run: {self.job_id} {held['reason'].split(':')[0]}: canceled, as cnc-run resumes a held "
-                  f"program only with --resume-after S", flush=True)
-            self.session.cancel(self.job_id)
-        else:
-            self.since_ns = held["stamp_ns"] if self.since_ns is None else self.since_ns
-            if self.session.recorder.feedback_ns < self.since_ns + round(self.resume_after * NS):
-                return False
-            print(f"cnc-run: {self.job_id} resumed after {self.resume_after:g} s held (--resume-after)", flush=True)
-            self.session.resume(self.job_id)
-        self.handled, self.since_ns = held["detail"].get("hold", 0), None
-        return False
-
-
 def run_job(text: str, job_id: str, machine: str, bag_dir: Path, *, timeout: float = 900.0,
             progress: Callable[[dict], None] | None = None, namespace: str = topics.NAMESPACE,
             plant: str = "", nodes: Nodes | None = None, resume_after: float | None = None) -> dict:
@@ -321,7 +302,7 @@ def run_job(text: str, job_id: str, machine: str, bag_dir: Path, *, timeout: flo
     with Session(machine, bag_dir, progress=progress, namespace=namespace, bridge_params=bridge,
                  nodes=nodes) as session:
         session.submit(text)
-        status = session.wait(job_id, timeout, Pauses(session, job_id, resume_after))
+        status = session.wait(job_id, timeout, Pauses(job_id, resume_after))
         if status["state"] != "rejected":
             session.settle(status)
         return status

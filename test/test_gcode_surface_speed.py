@@ -175,6 +175,20 @@ def test_bad_move_feeds_are_refused_by_field(move, field, reason):
         parse_job({**FACE, "surface_speed": None, "move": [{"linear": {"x": 1}, "feed_per_rev": 0.1}]})
 
 
+def planned_surface_speed(job, op, feeds_per_rev: tuple[float, ...]) -> tuple[np.ndarray, dict]:
+    """The job planned on the lathe from X30 Z10 and sampled every ms: the spindle's
+    acceleration and the surface speed judged on the command where operation ``op`` (the
+    job itself, or one of its program's) feeds."""
+    machine = load_machine("lathe")
+    plan = plan_job(job, machine, {"x": 0.03, "z": 0.01})
+    t = np.arange(0.0, plan.duration, 1e-3)
+    p, v, a = plan.sample(t)
+    x, z, s = (plan.joints.index(j) for j in ("x", "z", "spindle"))
+    radius, _ = Kinematics(machine, op.setup, op.tool).tip_radius_z(p[:, x], p[:, z])
+    return a[:, s], judge_surface_speed(t, radius, np.hypot(v[:, x], v[:, z]), v[:, s], op.surface_speed.m_min,
+                                  op.surface_speed.max_rpm, feeds_per_rev)
+
+
 def test_g70_finishes_at_the_surface_speed():
     """G70 under G96 (G95): its finishing passes are feed moves of one operation at the surface
     speed, each at the feed per revolution written; planned, the spindle holds 150 m/min within
@@ -187,14 +201,7 @@ def test_g70_finishes_at_the_surface_speed():
     feeds = [m for m in doc["move"] if "linear" in m]
     # two passes of the contour after its first point (the approach, as LinuxCNC has it)
     assert len(feeds) == 2 * 2 and all(m == {"linear": m["linear"], "feed_per_rev": 0.1} for m in feeds)
-    machine = load_machine("lathe")
-    plan = plan_job(job, machine, {"x": 0.03, "z": 0.01})
-    t = np.arange(0.0, plan.duration, 1e-3)
-    p, v, _ = plan.sample(t)
-    x, z, s = (plan.joints.index(j) for j in ("x", "z", "spindle"))
-    radius, _ = Kinematics(machine, op.setup, op.tool).tip_radius_z(p[:, x], p[:, z])
-    figures = judge_surface_speed(t, radius, np.hypot(v[:, x], v[:, z]), v[:, s], op.surface_speed.m_min,
-                                  op.surface_speed.max_rpm, (next(m.feed_per_rev for m in op.move if m.linear),))
+    _, figures = planned_surface_speed(job, op, (next(m.feed_per_rev for m in op.move if m.linear),))
     assert figures["failures"] == [] and figures["max_deviation_pct"] <= 1.0 + 1e-6 and figures["held_s"] > 5.0
 
 
@@ -203,19 +210,12 @@ def test_the_planned_spindle_holds_the_surface_speed_along_x():
     revolution of the planned spindle speed) the surface speed is within 1 % of 150 m/min
     where the cap does not bind, the rpm never above the cap, the spindle's acceleration
     within its limit; the cone's tapered cuts ramp it along the cut."""
-    machine = load_machine("lathe")
     job = parse_job(_turn_doc(surface_speed={"m_min": 150, "max_rpm": 3000}))
-    plan = plan_job(job, machine, {"x": 0.03, "z": 0.01})
-    t = np.arange(0.0, plan.duration, 1e-3)
-    p, v, a = plan.sample(t)
-    x, z, s = (plan.joints.index(j) for j in ("x", "z", "spindle"))
-    radius, _ = Kinematics(machine, job.setup, job.tool).tip_radius_z(p[:, x], p[:, z])
-    figures = judge_surface_speed(t, radius, np.hypot(v[:, x], v[:, z]), v[:, s], job.surface_speed.m_min,
-                                  job.surface_speed.max_rpm, (job.turn.feed,))
+    spindle_acceleration, figures = planned_surface_speed(job, job, (job.turn.feed,))
     assert figures["failures"] == [] and figures["max_deviation_pct"] <= 1.0 + 1e-6
     assert figures["held_s"] > 30.0 and figures["capped_s"] > 1.0 and figures["max_rpm"] <= 3000.0
     assert figures["min_m_min"] < 149.0  # a taper's pieces: not one rpm per cut
-    assert np.max(np.abs(a[:, s])) <= machine.axes["spindle"].max_acceleration * (1 + 1e-9)
+    assert np.max(np.abs(spindle_acceleration)) <= load_machine("lathe").axes["spindle"].max_acceleration * (1 + 1e-9)
 
 
 def test_the_judge_fails_one_rpm_along_x_and_a_spindle_above_its_cap():

@@ -125,7 +125,7 @@ def test_a_program_holds_at_m0_until_resumed_and_each_operation_is_judged(tmp_pa
 
 
 def test_a_held_program_cancels_cleanly_and_a_resume_for_no_held_job_moves_nothing(tmp_path):
-    from support import cnc
+    from support import BIN
     from cnc_analysis.recording import read_run
     from cnc_planner.runner import Session
 
@@ -134,13 +134,19 @@ def test_a_held_program_cancels_cleanly_and_a_resume_for_no_held_job_moves_nothi
         session.submit(json.dumps(program_job(job_id="held")))
         held = _held(session, "held")
         session.resume("nobody")
-        result = cnc("cnc-submit", "--resume", "nobody", "--namespace", "/cnc", timeout=60)
-        assert result.returncode == 2
-        assert result.stderr.strip().splitlines() == [
+        # The recorder spins while cnc-submit runs: a recorder that stops reading for 1 s of
+        # wall time counts as gone, and the simulated clock then runs on unrecorded.
+        resume = subprocess.Popen([str(BIN / "cnc-submit"), "--resume", "nobody", "--namespace", "/cnc"],
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=dict(os.environ))
+        session.spin_until(lambda: resume.poll() is not None, 60, "cnc-submit --resume never returned")
+        _, err = resume.communicate()
+        assert resume.returncode == 2
+        assert err.strip().splitlines() == [
             "cnc-submit: job 'nobody' is not held (no status heard for it); only a program held at M0/M1 resumes"]
         later = held["stamp_ns"] + NS // 2
         session.spin_until(lambda: session.recorder.feedback_ns >= later, 60, "the clock stopped")
         assert _held(session, "held")["state"] == "held"  # still held
+        canceled_ns = session.recorder.feedback_ns
         session.cancel("held")
         final = session.wait("held", 60)
         assert final["state"] == "canceled"
@@ -153,6 +159,9 @@ def test_a_held_program_cancels_cleanly_and_a_resume_for_no_held_job_moves_nothi
     assert np.ptp(run.feedback[after][:, axes], axis=0).max() < 2e-6  # never moved again
     s = run.column("spindle")
     assert abs(run.feedback_velocity[-1, s]) < 1e-3 and abs(run.command_velocity[-1, s]) == 0.0  # stopped
+    turning = 2000 * 2 * np.pi / 60
+    stop_s = run.command_t[(run.command_t > hold_s) & (run.command_velocity[:, s] < 0.99 * turning)][0]
+    assert stop_s - canceled_ns / NS < 1.0  # the stop begins a lookahead after the cancel, not later
     accel = np.diff(run.command_velocity[:, s]) / np.diff(run.command_t)
     limit = load_machine("mill3").axes["spindle"].max_acceleration
     assert np.abs(accel[run.command_t[1:] > hold_s]).max() <= limit * 1.01  # a controlled stop

@@ -1,6 +1,7 @@
 """What a program takes from the machine it runs on, as LinuxCNC's does: where the tool stands
-when the program begins (a G91 move or G92 before any absolute move), the work offsets the
-machine keeps in its var file (G55..), and the probe it lacks (G38.x refused for that
+when the program begins (a G91 move or G92 before any absolute move), the spindle an
+operator started before cycle start (program.start.spindle_rpm, --spindle), the work offsets
+the machine keeps in its var file (G55..), and the probe it lacks (G38.x refused for that
 machine reason). Hand-computed positions, planned from given joints and judged by the
 report on the drive model's predicted feedback."""
 from __future__ import annotations
@@ -97,3 +98,28 @@ def test_a_position_read_before_the_program_gives_it_is_the_machines(text):
         translate(f"{text}\nM2", Context("t", "mill3"))
     assert err.value.needs_start, str(err.value)
     assert parse_job(program(f"{text}\nG90 G1 X7 F60\nM2")).program.start_from_machine
+
+
+def test_a_program_that_never_starts_the_spindle_runs_with_the_one_the_operator_started():
+    # hole-circle.ngc's shape: LinuxCNC's simulator examples drill without S or M3
+    gcode = "G21 G90 G17\nG0 X10 Y10 Z5\nG98 G81 X10 Y10 Z-3 R2 F200\nG80\nM2"
+    with pytest.raises(JobError, match=r"^line 3: G81: the spindle is off: give S and M3 before it, or start it "
+                                       r"ahead \(program.start.spindle_rpm, --spindle RPM\)$"):
+        parse_job(program(gcode))
+    job = parse_job(program(gcode, start={"spindle_rpm": 1200}))
+    drill = job.program.operations[1][1]
+    assert drill.kind == "drill" and drill.spindle_rpm == pytest.approx(1200 * 2 * np.pi / 60)
+    assert not job.program.start_from_machine  # the spindle given, the position still absolute
+    # the program's own S and M5 change it as any S M3 would; #<_rpm> reads it
+    with pytest.raises(JobError, match=r"^line 3: G81: the spindle is off"):
+        parse_job(program(gcode.replace("G17", "G17 M5"), start={"spindle_rpm": 1200}))
+    rpm = parse_job(program(gcode.replace("G17", "G17 S[#<_rpm>*2]"), start={"spindle_rpm": 600})).program
+    assert rpm.operations[1][1].spindle_rpm == pytest.approx(1200 * 2 * np.pi / 60)
+    with pytest.raises(JobError, match=r"^program.start.spindle_rpm: must be > 0 rpm, got 0$"):
+        parse_job(program(gcode, start={"spindle_rpm": 0}))
+
+
+def test_a_spindle_given_at_the_start_still_lets_the_program_start_where_the_machine_stands():
+    doc = program("G21 G91 G98 G81 X10 Y0 R-45 Z-5 F100\nM2", start={"spindle_rpm": 1000})
+    assert parse_job(doc).program.start_from_machine
+    assert end_of(doc, START)["x"] == pytest.approx(START["x"] + 0.010, abs=1e-9)

@@ -1,7 +1,10 @@
 """Tool tables and program files (cnc_msgs_py.gcode.tools, .document): LinuxCNC's tool.tbl
 read whole with errors naming file and line, T/M6/M61/G43/G43 H/G49 applying its lengths,
-a machine's own table, ``--tools FILE``, and subroutine files found on the search path."""
+a machine's own table, ``--tools FILE``, ``--spindle RPM``, and subroutine files found on the
+search path."""
 from __future__ import annotations
+
+import json
 
 import pytest
 
@@ -81,6 +84,21 @@ def test_the_machines_own_table_m61_and_g43_h():
     with pytest.raises(JobError, match=r"^line 2: T42: no such tool in the tool table"):
         parse_job({"schema": "cnc_job/1", "job_id": "t", "kind": "program", "machine": "mill3",
                    "program": {"gcode": "G21\nT42 M6\nM2"}})
+
+
+def test_spindle_gives_a_program_the_spindle_an_operator_started(tmp_path):
+    from support import ROOT, cnc
+    program = tmp_path / "no_m3.ngc"  # as LinuxCNC's hole-circle.ngc: no S, no M3
+    program.write_text("(CNC,MACHINE mill3)\nG21 G90 G17\nG0 X0 Y0 Z5\nG98 G81 X5 Y0 Z-2 R1 F300\nG80\nM2\n")
+    assert job_document(program, spindle_rpm=1500)["program"]["start"] == {"spindle_rpm": 1500}
+    result = cnc("cnc-plan", program, "--out", tmp_path / "off", timeout=60)
+    assert result.returncode == 2 and result.stderr.startswith("cnc-plan: line 4: G81: the spindle is off: ")
+    result = cnc("cnc-plan", program, "--spindle", "1500", "--out", tmp_path / "on", timeout=60)
+    assert result.returncode == 0, result.stderr
+    summary = json.loads((tmp_path / "on" / "summary.json").read_text())
+    assert [e["name"] for e in summary["events"]].count("S3") == 1  # the hole drilled to its bottom
+    with pytest.raises(JobError, match=r"^spindle: the spindle at a program's start is for G-code programs"):
+        job_document(ROOT / "config" / "jobs" / "drill_row.yaml", spindle_rpm=1500)
 
 
 def test_a_subroutine_file_on_the_search_path_goes_into_the_document(tmp_path, monkeypatch):

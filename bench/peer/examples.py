@@ -5,8 +5,8 @@ The machining examples each run on a shipped machine with its own tool table (mi
 lathe for the lathe programs) and plan, or are refused: for a machine reason (travel, an
 axis the machine lacks, a work offset (G55..) it keeps none of, a probe it lacks) or for a
 language reason (a word this front end refuses, with its reason). Probing, remap and I/O
-demos and the language demos that move no axis are left out, each with why. A refusal for a
-program reason is the program's own doing: drilling with the spindle off. The files are
+demos and the language demos that move no axis are left out, each with why. A program that
+never starts the spindle runs with it started ahead, as an operator would (``--spindle``). The files are
 LinuxCNC's (GPL): they are read where they are installed, never copied; bench/results/linuxcnc_examples.json keeps each one's sha256,
 outcome and rs274's verdict, and test/test_gcode_examples.py checks the outcomes.
 
@@ -52,22 +52,22 @@ LEFT_OUT = {
 # program (a cutter too big for a compensated entry), a work offset it keeps none of, a probe
 MACHINE_REASONS = ("outside its travel", "has no", "exceeds the spindle", "cannot run", "than the tool radius",
                    "keeps no")
-# the program asks for what our methods must not do: drill or turn with the spindle stopped (LinuxCNC
-# would run it; ``spindle_turning`` records what it does with S1000 M3 ahead of it). A position read
-# before the program gives one is where the machine stands, as in LinuxCNC: no refusal.
+# the program asks for what our methods must not do: drill or turn with the spindle stopped. A
+# program that never starts the spindle (written for LinuxCNC's simulator) is run as an operator
+# runs it, the spindle started in MDI before cycle start (``--spindle``): ``spindle_ahead_rpm``
+# and the refusal without it (``without_spindle``) are recorded. A position read before the
+# program gives one is where the machine stands, as in LinuxCNC: no refusal.
 PROGRAM_REASONS = ("the spindle is off",)
-
-
-SPINDLE_TURNING = "S1000 M3\n"  # (an operator's MDI before cycle start, as LinuxCNC keeps the spindle on)
+SPINDLE_AHEAD_RPM = 1000.0  # cnc-run --spindle 1000: an operator's MDI S1000 M3
 
 
 def machine_of(name: str) -> str:
     return "lathe" if name.startswith(LATHE) or name in LATHE else "mill3"
 
 
-def ours(path: Path, machine: str, ahead: str = "") -> tuple[str, str]:
+def ours(path: Path, machine: str, spindle_rpm: float | None = None) -> tuple[str, str]:
     """('plans', seconds) or ('machine' | 'program' | 'language', the refusal) for one file;
-    ``ahead``: a line run before the program's first (as an operator's MDI before the start)."""
+    ``spindle_rpm``: the spindle turning as the program begins (cnc-run --spindle)."""
     from cnc_msgs_py.gcode.document import job_document
     from cnc_msgs_py.job import parse_job
     from cnc_msgs_py.machine import load_machine
@@ -75,9 +75,7 @@ def ours(path: Path, machine: str, ahead: str = "") -> tuple[str, str]:
 
     from cnc_planner.planning import plan_job
     try:
-        doc = job_document(path, machine)
-        doc["program"]["gcode"] = ahead + doc["program"]["gcode"]
-        job = parse_job(doc)
+        job = parse_job(job_document(path, machine, spindle_rpm=spindle_rpm))
         return "plans", f"{plan_job(job, load_machine(machine)).duration:.1f} s"
     except JobError as err:
         text = str(err)
@@ -102,11 +100,12 @@ def survey(folder: Path = NCFILES) -> dict:
             rows[name] = {"sha256": sha, "left_out": LEFT_OUT[name]}
             continue
         machine = machine_of(name)
+        rows[name] = {"sha256": sha, "machine": machine, "rs274": rs274_verdict(path, machine)}
         outcome, detail = ours(path, machine)
-        rows[name] = {"sha256": sha, "machine": machine, "outcome": outcome, "detail": detail,
-                      "rs274": rs274_verdict(path, machine)}
-        if outcome == "program":  # what it does with the spindle turning from the start
-            rows[name]["spindle_turning"] = " ".join(ours(path, machine, SPINDLE_TURNING))
+        if outcome == "program":  # it never starts the spindle: the operator does, before cycle start
+            rows[name].update(without_spindle=detail, spindle_ahead_rpm=SPINDLE_AHEAD_RPM)
+            outcome, detail = ours(path, machine, SPINDLE_AHEAD_RPM)
+        rows[name].update(outcome=outcome, detail=detail)
     return rows
 
 
@@ -175,8 +174,10 @@ def main() -> int:
     count = {k: sum(r["outcome"] == k for r in machining) for k in ("machine", "program", "language")}
     for name, r in rows.items():
         print(f"{name:55s} {r.get('outcome', 'left out'):9s} {r.get('detail', r.get('left_out'))}")
-    print(f"{len(machining)} machining examples of {len(rows)}: {plans} plan; refused for a machine reason "
-          f"{count['machine']}, a program reason {count['program']}, a language reason {count['language']}")
+    ahead = sum("spindle_ahead_rpm" in r and r["outcome"] == "plans" for r in machining)
+    print(f"{len(machining)} machining examples of {len(rows)}: {plans} plan ({ahead} of them with --spindle "
+          f"{SPINDLE_AHEAD_RPM:g}); refused for a machine reason {count['machine']}, a program reason "
+          f"{count['program']}, a language reason {count['language']}")
     RESULTS.write_text(json.dumps(rows, indent=1, sort_keys=True) + "\n")
     return 0
 

@@ -14,7 +14,7 @@ import sys
 from typing import Any, Callable
 
 from . import topics
-from .tool import tool_parser
+from .tool import add_program_options, tool_parser
 
 RESUME_HEAR_S = 3.0  # --resume: how long to listen for the job's latest status (kept by the planner)
 
@@ -30,8 +30,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("job", nargs="?", help="job document: a YAML or JSON file, or a G-code program (.ngc)")
     parser.add_argument("--resume", metavar="JOB_ID", help="resume this job, held at a program pause (M0/M1), "
                                                           "and follow it to its end or next hold (no JOB)")
-    parser.add_argument("--machine", help="the machine a program (or job) runs on when it names none")
-    parser.add_argument("--tools", help="a LinuxCNC tool.tbl for a G-code program (default: the machine's own)")
+    add_program_options(parser)
     parser.add_argument("--namespace", default=topics.NAMESPACE, help="the nodes' namespace (default /cnc)")
     parser.add_argument("--timeout", type=float, default=600.0, help="wall-clock limit for the job (s)")
     parser.add_argument("--cancel-after", type=float, default=None, metavar="S",
@@ -41,7 +40,7 @@ def main(argv: list[str] | None = None) -> int:
         return _fail("give a JOB to send, or --resume JOB_ID (not both)")
     from .client import CncClient, CncClientError  # past the arguments: --help answers without them
     from .discovery import dds_environment
-    from .gcode.document import job_document
+    from .gcode.document import job_from_args
     from .job import load_job
     from .progress import Progress
     from .schema import JobError
@@ -51,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
         if value is not None and not value > 0:
             return _fail(f"--{name.replace('_', '-')}: must be > 0 s, got {value:g}")
     try:
-        doc = {"job_id": args.resume} if args.resume else load_job(job_document(args.job, args.machine, args.tools))
+        doc = {"job_id": args.resume} if args.resume else load_job(job_from_args(args))
     except JobError as err:
         return _fail(f"{args.job}: {err}" if err.field else str(err))
     # The user's DDS settings as they are (a discovery server on a shop floor); without

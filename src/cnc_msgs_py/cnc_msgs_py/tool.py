@@ -47,6 +47,16 @@ def tool_parser(prog: str, package: str, **kwargs) -> argparse.ArgumentParser:
     return parser
 
 
+def add_program_options(parser: argparse.ArgumentParser) -> None:
+    """The options cnc-run, cnc-plan and cnc-submit share for a job file (read by
+    ``gcode.document.job_from_args``)."""
+    parser.add_argument("--machine", help="the machine a program (or job) runs on when it names none")
+    parser.add_argument("--tools", help="a LinuxCNC tool.tbl for a G-code program (default: the machine's own)")
+    parser.add_argument("--spindle", type=float, metavar="RPM",
+                        help="a G-code program begins with the spindle turning (M3) at RPM, as after an "
+                             "operator's MDI S<RPM> M3 (default: stopped)")
+
+
 def node_parser(prog: str, description: str, package: str, parameters: dict[str, Param]) -> argparse.ArgumentParser:
     """A node's own arguments (--help, --version) and, in its help, ROS's and the parameters."""
     rows = []

@@ -19,7 +19,7 @@ import sys
 import time
 from pathlib import Path
 
-from cnc_msgs_py.tool import tool_parser
+from cnc_msgs_py.tool import add_program_options, tool_parser
 from cnc_msgs_py.topics import NAMESPACE
 
 
@@ -42,8 +42,7 @@ def run_main(argv: list[str] | None = None) -> int:
     """cnc-run JOB [--out DIR]: run a job on the emulated machine and report on it."""
     parser = tool_parser("cnc-run", "cnc_planner", description=run_main.__doc__)
     parser.add_argument("job", help="job document (YAML or JSON) or G-code program (.ngc)")
-    parser.add_argument("--machine", help="the machine a program (or job) runs on when it names none")
-    parser.add_argument("--tools", help="a LinuxCNC tool.tbl for a G-code program (default: the machine's own)")
+    add_program_options(parser)
     parser.add_argument("--out", type=Path, help="output directory (default runs/<timestamp>)")
     parser.add_argument("--timeout", type=float, default=900.0, help="wall-clock limit (s)")
     parser.add_argument("--namespace", default=NAMESPACE, help=f"the machine's namespace (default {NAMESPACE})")
@@ -55,7 +54,7 @@ def run_main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.resume_after is not None and not args.resume_after >= 0:
         return _fail("cnc-run", f"--resume-after: must be >= 0 s, got {args.resume_after:g}")
-    from cnc_msgs_py.gcode.document import job_document
+    from cnc_msgs_py.gcode.document import job_from_args
     from cnc_msgs_py.job import job_id_of
     from cnc_msgs_py.machine import MachineError, load_machine
     from cnc_msgs_py.plant import load_plant
@@ -65,7 +64,7 @@ def run_main(argv: list[str] | None = None) -> int:
     if (out / "bag").exists():
         return _fail("cnc-run", f"--out: {out / 'bag'} exists already; choose a new directory")
     try:
-        doc = job_document(args.job, args.machine, args.tools)
+        doc = job_from_args(args)
         machine = load_machine(doc.get("machine") if isinstance(doc.get("machine"), str) else "")
         plant = str(args.plant.resolve()) if args.plant else ""
         load_plant(plant, machine)  # checked here: a bad plant file is bad input, not a failed run
@@ -190,8 +189,7 @@ def plan_main(argv: list[str] | None = None) -> int:
     """cnc-plan JOB --out DIR: plan offline (no ROS) and write setpoints.npz + summary.json."""
     parser = tool_parser("cnc-plan", "cnc_planner", description=plan_main.__doc__)
     parser.add_argument("job", help="job document (YAML or JSON) or G-code program (.ngc)")
-    parser.add_argument("--machine", help="the machine a program (or job) runs on when it names none")
-    parser.add_argument("--tools", help="a LinuxCNC tool.tbl for a G-code program (default: the machine's own)")
+    add_program_options(parser)
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--period", type=float, default=0.001, help="interpolation period (s)")
     parser.add_argument("--compress", action="store_true",
@@ -200,7 +198,7 @@ def plan_main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     import numpy as np
 
-    from cnc_msgs_py.gcode.document import job_document
+    from cnc_msgs_py.gcode.document import job_from_args
     from cnc_msgs_py.heap import keep_freed_memory
     from cnc_msgs_py.job import parse_job
     from cnc_msgs_py.machine import MachineError, load_machine
@@ -211,7 +209,7 @@ def plan_main(argv: list[str] | None = None) -> int:
 
     keep_freed_memory()  # as the planner node does: the plan's arrays reuse freed memory
     try:
-        job = parse_job(job_document(args.job, args.machine, args.tools))
+        job = parse_job(job_from_args(args))
         machine = load_machine(job.machine)
         plan = plan_job(job, machine)
     except (JobError, MachineError) as err:

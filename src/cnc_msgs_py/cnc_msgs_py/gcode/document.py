@@ -3,7 +3,9 @@
 
 The machine is ``--machine NAME``, else the program's ``(CNC,MACHINE name)`` comment; the
 job id is the file's name (its characters outside the job-id pattern replaced by ``-``).
-``--tools FILE`` (a LinuxCNC tool.tbl) becomes ``program.tool_table``. Every ``o<name> call``
+``--tools FILE`` (a LinuxCNC tool.tbl) becomes ``program.tool_table``, ``--spindle RPM``
+``program.start.spindle_rpm`` (the spindle an operator started in MDI before cycle start, for
+a program that never starts it: LinuxCNC's examples written for its simulator). Every ``o<name> call``
 the program does not define is looked up as ``<name>.ngc`` (lower case, as LinuxCNC does) in
 the program's folder, then in the folders of ``CNC_SUBROUTINE_PATH`` (LinuxCNC's
 SUBROUTINE_PATH, ``os.pathsep`` separated), and carried in ``program.subroutines`` so that
@@ -11,6 +13,7 @@ the document stays whole on the topics.
 """
 from __future__ import annotations
 
+import argparse
 import os
 import re
 from pathlib import Path
@@ -72,9 +75,16 @@ def program_document(path: Path, machine: str | None = None) -> dict:
     return {"schema": "cnc_job/1", "job_id": job_id, "kind": "program", "machine": name, "program": block}
 
 
-def job_document(path: str | Path, machine: str | None = None, tools: str | Path | None = None) -> dict:
+def job_from_args(args: argparse.Namespace) -> dict:
+    """The job document of ``args.job`` with the options of ``tool.add_program_options``."""
+    return job_document(args.job, args.machine, args.tools, args.spindle)
+
+
+def job_document(path: str | Path, machine: str | None = None, tools: str | Path | None = None,
+                 spindle_rpm: float | None = None) -> dict:
     """A program document from a G-code file, else the YAML/JSON job (``machine`` filling in
-    a machine the job does not name); ``tools`` a tool.tbl for a program's ``tool_table``."""
+    a machine the job does not name); ``tools`` a tool.tbl for a program's ``tool_table``,
+    ``spindle_rpm`` its ``start.spindle_rpm``."""
     path = Path(path)
     if path.suffix.lower() in PROGRAM_SUFFIXES:
         doc = program_document(path, machine)
@@ -82,8 +92,13 @@ def job_document(path: str | Path, machine: str | None = None, tools: str | Path
         doc = load_job_file(path)
         if machine and "machine" not in doc:
             doc["machine"] = machine
+    options = {"tools": ("a tool table", tools), "spindle": ("the spindle at a program's start", spindle_rpm)}
+    for option, (what, given) in options.items():
+        if given is not None and (doc.get("kind") != "program" or not isinstance(doc.get("program"), dict)):
+            raise JobError(option, f"{what} is for G-code programs (kind: program)")
     if tools is not None:
-        if doc.get("kind") != "program" or not isinstance(doc.get("program"), dict):
-            raise JobError("tools", "a tool table is for G-code programs (kind: program)")
         doc["program"]["tool_table"] = load_tool_table(tools)
+    if spindle_rpm is not None:
+        start = doc["program"].get("start")
+        doc["program"]["start"] = {**(start if isinstance(start, dict) else {}), "spindle_rpm": spindle_rpm}
     return doc

@@ -12,6 +12,9 @@ from .lexer import Block, GcodeError, word_text
 ROUGHING_CYCLES = (71.0, 71.1, 71.2, 72.0, 72.1, 72.2)  # G71/G72 and their .1/.2 variants (gcode/lathe.py)
 MOTION = {0.0, 1.0, 2.0, 3.0, 5.1, 33.0, 33.1, 70.0, *ROUGHING_CYCLES, 73.0, 76.0, 80.0, 81.0, 82.0, 83.0}
 DRILL_CYCLES = {73.0, 81.0, 82.0, 83.0}
+# A cycle, a locked move or a feed per revolution with the spindle stopped is the program's
+# refusal; a program written for a simulator never starts it, as an operator's MDI did first.
+START_SPINDLE = "give S and M3 before it, or start it ahead (program.start.spindle_rpm, --spindle RPM)"
 G_GROUPS: dict[float, str] = {
     **{g: "motion" for g in MOTION},
     4.0: "non-modal", 10.0: "non-modal", 52.0: "non-modal", 53.0: "non-modal",

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 
 from ..machine import MachineError, load_machine
 from .lexer import Block, GcodeError, word_text
-from .modal import DRILL_CYCLES, MOTION, ROUGHING_CYCLES, Modal
+from .modal import DRILL_CYCLES, MOTION, ROUGHING_CYCLES, START_SPINDLE, Modal
 
 if TYPE_CHECKING:
     from .translate import Translator
@@ -108,7 +108,7 @@ def feed(tr: "Translator", line: int, word: str) -> dict:
     if s.feed is None:
         raise GcodeError(line, word, "no feed given (F)")
     if not s.spindle_on:
-        raise GcodeError(line, word, "G95 feeds per revolution need the spindle on (S, M3)")
+        raise GcodeError(line, word, f"G95 feeds per revolution need the spindle on: {START_SPINDLE}")
     return {"feed_per_rev": s.length(s.feed)}
 
 

@@ -16,7 +16,7 @@ from .drilling import hole
 from .finishing import g70
 from .lathe import g71, g76
 from .lexer import Block, GcodeError, closed_by_percent, word_text
-from .modal import DRILL_CYCLES, MOTION, ROUGHING_CYCLES, Modal, check_groups
+from .modal import DRILL_CYCLES, MOTION, ROUGHING_CYCLES, START_SPINDLE, Modal, check_groups
 from .parameters import Parameters, whole
 from .polar import has_polar, polar_xy
 
@@ -64,6 +64,7 @@ class Context:
     work_offsets: dict[str, dict] = field(default_factory=dict)  # G55..G59 -> setup
     stock: list | None = None
     start: dict[str, float] = field(default_factory=dict)
+    spindle_rpm: float | None = None  # the spindle turning (M3) at this speed as the program begins
     subroutines: dict[str, str] = field(default_factory=dict)  # name -> the text of <name>.ngc
     optional_stop: bool = True  # M1 holds (AXIS's "Stop at M1" is on by default)
 
@@ -94,7 +95,8 @@ class Translator:
 
     def __init__(self, ctx: Context) -> None:
         self.ctx = ctx
-        self.state = Modal(position=dict(ctx.start))
+        self.state = Modal(position=dict(ctx.start), speed=ctx.spindle_rpm or 0.0,
+                           spindle_on=ctx.spindle_rpm is not None)
         self.operations = Operations()
         self.current: Operation | None = None
         self.current_key: tuple | None = None
@@ -418,7 +420,7 @@ class Translator:
             raise GcodeError(line, word, "no feed given (F)")
         if s.per_rev:
             if not (s.spindle_on and s.speed > 0.0):
-                raise GcodeError(line, word, "G95 feeds per revolution need the spindle on (S, M3)")
+                raise GcodeError(line, word, f"G95 feeds per revolution need the spindle on: {START_SPINDLE}")
             return s.length(s.feed) * s.speed
         return s.length(s.feed)
 
@@ -508,7 +510,7 @@ class Translator:
 
     def _need_spindle(self, line: int, word: str) -> None:
         if not (self.state.spindle_on and self.state.speed > 0.0):
-            raise GcodeError(line, word, "the spindle is off: give S and M3 before the cycle")
+            raise GcodeError(line, word, f"the spindle is off: {START_SPINDLE}")
 
     def _hole(self, b: Block, used: set[str]) -> None:
         hole(self, b, used)

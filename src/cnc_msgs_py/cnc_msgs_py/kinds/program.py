@@ -8,6 +8,8 @@ other kinds' jobs. The block::
       stock: [[0, 20], [-40, 20]]         # G71's real stock, [z, radius] as turn.stock
       start: {x: 7, z: 4}                 # where the tool stands when the program begins
                                           # (else where the machine stands, if the program asks)
+      start: {spindle_rpm: 1000}          # the spindle turning (M3) as the program begins, as an
+                                          # operator's MDI S1000 M3 leaves it (else stopped)
       subroutines: [{name: peck, gcode: "o<peck> sub ... o<peck> endsub"}]   # <name>.ngc files
       optional_stop: true                 # M1 holds as M0 does (AXIS's default); false: M1 is skipped
 
@@ -35,7 +37,8 @@ PROGRAM = Obj({
     "tool_table": List(TOOL, max_len=1000, default=None),
     "work_offsets": Obj({f"G{n}": Obj(SETUP.fields, default=None) for n in range(55, 60)}, default=None),
     "stock": List(OUTLINE.item, min_len=2, max_len=MAX_LIST, default=None),  # as turn.stock
-    "start": Obj({k: Num("mm", default=None) for k in START_AXES}, default=None),
+    "start": Obj({**{k: Num("mm", default=None) for k in START_AXES},
+                  "spindle_rpm": Num("rpm", gt=0.0, max=100_000.0, default=None)}, default=None),
     "subroutines": List(Obj({"name": Str(pattern=r"[A-Za-z0-9_.-]{1,64}"), "gcode": Str()}), max_len=1000, default=None),
     "optional_stop": Bool(default=True),
 }, default=None)
@@ -67,18 +70,19 @@ def translate_program(doc: dict, job: SimpleNamespace) -> None:
         if entry["tool"] in table:
             raise JobError("program.tool_table", f"tool {entry['tool']} given twice")
         table[entry["tool"]] = {k: v for k, v in entry.items() if k != "tool"}
-    start = {k: v for k, v in (block.get("start") or {}).items() if v is not None}
+    given = block.get("start") or {}
+    start = {k: given[k] for k in START_AXES if given.get(k) is not None}
     ctx = Context(job_id=job.job_id, machine=job.machine, setup=doc.get("setup") or {}, tool_table=table,
                   work_offsets={**machine_work_offsets(job.machine),
                                 **{k: v for k, v in (block.get("work_offsets") or {}).items() if v is not None}},
-                  stock=block.get("stock"), start=start,
+                  stock=block.get("stock"), start=start, spindle_rpm=given.get("spindle_rpm"),
                   subroutines={s["name"].lower(): s["gcode"] for s in block.get("subroutines") or []},
                   optional_stop=block.get("optional_stop", True))
     job.program.context, job.program.start_from_machine = ctx, False
     try:
         job.program.operations = _operations(block["gcode"], ctx)
     except GcodeError as err:
-        if not err.needs_start or block.get("start") is not None:
+        if not err.needs_start or start:
             raise
         from ..gcode.modal import machine_axes
         job.program.start_from_machine = True

@@ -56,6 +56,19 @@ def _moving_span(t: np.ndarray, axes: np.ndarray, threshold: float) -> tuple[flo
     return float(t[left[0]]), float(t[unsettled[-1]])
 
 
+def _climb_to_r(z: np.ndarray, r_z: float, dither: float) -> int:
+    """How many samples at the start the tip spends climbing to R from below it: a cycle
+    begun below its R plane rises there first (LinuxCNC's preliminary move, hole-circle.ngc
+    starts at Z0 under R0.1). That is where the operation before left the tip, X/Y maybe
+    still settling from its rapid there: no hole visit, and no X/Y motion of this cycle's.
+    None if it starts above R or goes down first."""
+    if not len(z) or z[0] >= r_z:
+        return 0
+    above = np.nonzero(z >= r_z)[0]
+    end = int(above[0]) if len(above) else len(z)
+    return end if z[:end].min() >= z[0] - dither else 0
+
+
 def analyze_drilling(
     t: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray,
     holes: list[tuple[float, float]], r_z: float, xy_tolerance: float,
@@ -73,13 +86,15 @@ def analyze_drilling(
                       first hole) to this hole's r_up
       depth_mm        deepest point below surface_z (one for all holes or one per
                       hole), when surface_z is given
-    Job: ``safety_violations`` (samples below R off their hole) and ``cycle_time_s``
+    Job: ``safety_violations`` (samples below R off their hole, but for a start's climb to
+    R: _climb_to_r) and ``cycle_time_s``
     from the first to the last axis motion (an axis farther than the tolerance from
     its rest at the start / at the end).
     """
     t, x, y, z = (np.asarray(a, dtype=float) for a in (t, x, y, z))
     h = np.asarray(holes, dtype=float).reshape(-1, 2)
     mask = z < r_z
+    mask[:_climb_to_r(z, r_z, xy_tolerance)] = False
     starts, ends = _runs(mask, t)
     below = np.nonzero(mask)[0]
     visit = np.searchsorted(starts, below, side="right") - 1

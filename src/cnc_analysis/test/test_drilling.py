@@ -87,3 +87,22 @@ def test_a_gap_in_the_recording_does_not_merge_two_holes_into_one_visit():
     a, b = result["holes"]
     assert result["safety_violations"] == 0
     assert a["r_down_s"] == pytest.approx(1.5) and b["r_up_s"] == pytest.approx(7.5)
+
+
+def test_a_start_below_r_climbs_to_it_without_a_hole_visit():
+    # hole-circle.ngc's start: the tip at Z0 on B's X/Y (R 2 mm above), climbing to 4 mm by
+    # 0.6 s (R at 0.3 s), then on to A and B as in the hand-computed trajectory. Without the
+    # climb the tip is below R at B first: B's visits would span the whole run.
+    x, y, z = trajectory(3.8)
+    x = np.where(T < 0.7, 0.01, np.interp(T, [0.7, 0.9], [0.01, 0.0])) * (T < 3.8) + x * (T >= 3.8)
+    z = np.where(T < 0.6, T / 0.6 * 0.004, z)
+    result = analyze_drilling(T, x, y, z, HOLES, R, TOL)
+    a, b = result["holes"]
+    assert result["safety_violations"] == 0
+    assert a["r_down_s"] == pytest.approx(1.5) and b["r_down_s"] == pytest.approx(5.6)
+    assert a["in_position_s"] == pytest.approx(0.9, abs=1e-3)
+    # A start below R that goes down first is a visit of the hole it stands in (A: its
+    # first visit begins with the run, its last ends at 3.5 s)
+    z_down = np.where(T < 0.6, 0.001 - T / 0.6 * 0.001, np.where(T < 1.0, (T - 0.6) / 0.4 * 0.004, z))
+    down = analyze_drilling(T, *trajectory(3.8)[:2], z_down, HOLES, R, TOL)
+    assert down["holes"][0]["r_down_s"] == 0.0 and down["holes"][0]["r_up_s"] == pytest.approx(3.5)

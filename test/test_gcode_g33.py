@@ -77,15 +77,17 @@ def test_k2_at_600_rpm_feeds_20_mm_per_s_and_both_passes_start_at_the_index_in_o
         grooves.append(groove[0])
     assert (grooves[1] - grooves[0]) / 2e-3 == pytest.approx(round((grooves[1] - grooves[0]) / 2e-3), abs=1e-9)
     # the ideal start is half the ramp after the index: a symmetric ramp to 20 mm/s leaves the
-    # tool v * T / 2 behind it, T the ramp's time (the jerk its limit, as the plan derates it)
-    ts = starts[0] + np.arange(0.0, 0.05, 1e-5)
+    # tool v * T / 2 behind it, T the ramp's time (the jerk its limit, as the plan derates it,
+    # stretched so that every drive inside the tolerance holds the lock: kinds.sync.margin)
+    ts = starts[0] + np.arange(0.0, 0.2, 1e-5)
     _, v, a = plan.sample(ts)
     ramp = ts[np.argmax(np.abs(v[:, z] + 0.020) < 1e-12)] - starts[0]
-    assert 0.0126 <= ramp < 0.02  # at least 2 sqrt(0.02 / 500) s: the ramp is jerk-limited
+    assert 0.0126 <= ramp < 0.15  # at least 2 sqrt(0.02 / 500) s: the ramp is jerk-limited
     assert grooves[0] % 2e-3 == pytest.approx(0.020 * ramp / 2.0, abs=0.020 * 1e-5)
-    ts = starts[1] + (25.0 / 20.0) + np.linspace(0.03, 0.07, 41)  # on the exit, past its ramps
+    ts = starts[1] + ramp / 2.0 + (25.0 / 20.0) + np.linspace(0.0, 0.1, 1001)  # the exit, its ramps included
     _, v, _ = plan.sample(ts)
-    assert np.allclose(v[:, z], -0.020, atol=1e-12) and np.allclose(v[:, x], 0.020, atol=1e-12)
+    top = np.abs(v[:, x] - 0.020) < 1e-12  # x at its 20 mm/s between the ramps: z goes on at 20
+    assert top.any() and np.allclose(v[top, z], -0.020, atol=1e-12)
 
 
 def test_translation_of_g33_lines():
@@ -166,7 +168,7 @@ def test_a_rigid_tap_follows_the_spindle_down_through_its_reversal_and_out():
     for start, hole, bottom in zip(starts, (10e-3, 30e-3), (-10e-3, -6e-3)):
         sp = plan.sample(np.array([start]))[0][0, spindle]
         assert sp / TWO_PI == pytest.approx(round(sp / TWO_PI), abs=1e-9)  # at the index
-        tap = (t > start) & (p[:, x] == hole) & (p[:, z] < 1.9e-3)  # past the ramps on and off (0.07 mm)
+        tap = (t > start) & (p[:, x] == hole) & (p[:, z] < 1.5e-3)  # past the ramps on and off (0.4 mm)
         assert np.min(p[tap, z]) == pytest.approx(bottom, abs=1e-12)  # exactly the bottom
         groove = p[tap, z] + 1.25e-3 * p[tap, spindle] / TWO_PI
         assert np.ptp(groove) < 1e-12  # locked all the way, the reversal included

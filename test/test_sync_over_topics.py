@@ -69,7 +69,7 @@ def test_g33_1_rigid_taps_follow_the_spindle_through_its_reversal_on_feedback(tm
     run = read_run(tmp_path / "run" / "bag")
     x, z, spindle = (run.feedback[:, run.column(j)] for j in ("x", "z", "spindle"))
     theta = np.unwrap(spindle)
-    first = (np.abs(x - 10e-3) < 1e-6) & (z < 1.9e-3)  # the first hole, past the ramps
+    first = (np.abs(x - 10e-3) < 1e-6) & (z < 1.5e-3)  # the first hole, past the ramps (0.38 mm)
     groove = z[first] + 1.25e-3 * theta[first] / (2 * math.pi)
     assert np.ptp(groove) < 10e-6  # one helix in and out
     assert z[first].min() == pytest.approx(-10e-3, abs=10e-6)

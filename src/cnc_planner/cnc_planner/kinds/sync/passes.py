@@ -46,7 +46,7 @@ def ramp(u: np.ndarray, width: float) -> tuple[np.ndarray, np.ndarray, np.ndarra
     first = s <= width / 2.0
     rest = width - s
     w2 = width * width
-    position = np.where(first, 2.0 * s**3 / (3.0 * w2), width / 2.0 - 2.0 * rest**3 / (3.0 * w2))
+    position = np.where(first, 2.0 * s**3 / (3.0 * w2), width / 2.0 - rest + 2.0 * rest**3 / (3.0 * w2))
     velocity = np.where(first, 2.0 * s**2 / w2, 1.0 - 2.0 * rest**2 / w2)
     acceleration = np.where(first, 4.0 * s / w2, 4.0 * rest / w2)
     after = u > width / 2.0
@@ -91,9 +91,10 @@ class _Axis(WritingSampler):
 
 
 def pass_motion(machine: Machine, joints: list[str], start: np.ndarray, points: list[np.ndarray],
-                leads: list[float], speed: float, fields: list[str]) -> PassMotion:
+                leads: list[float], speed: float, fields: list[str], ease: float = 1.0) -> PassMotion:
     """The pass from ``start`` through ``points`` (axis positions, m), each move advancing
-    its lead (m along its path per revolution) at spindle ``speed`` (rad/s).
+    its lead (m along its path per revolution) at spindle ``speed`` (rad/s), every ramp
+    ``ease`` times as long as the axes' acceleration and jerk allow (kinds.sync.margin).
 
     Raises:
         JobError: a move faster than an axis may go, or too short for the ramps into and
@@ -101,8 +102,8 @@ def pass_motion(machine: Machine, joints: list[str], start: np.ndarray, points: 
     """
     axes = [machine.axes[j] for j in joints]
     top = np.array([a.max_velocity for a in axes])
-    acceleration = np.array([a.max_acceleration for a in axes])
-    jerk = np.array([a.max_jerk for a in axes])
+    acceleration = np.array([a.max_acceleration for a in axes]) / ease
+    jerk = np.array([a.max_jerk for a in axes]) / ease**2
     velocities, durations = [np.zeros(len(joints))], []
     here = start
     for point, lead, field in zip(points, leads, fields):
@@ -131,14 +132,14 @@ def pass_motion(machine: Machine, joints: list[str], start: np.ndarray, points: 
 
 
 def plan_pass(builder: PlanBuilder, joints: list[str], points: list[np.ndarray], leads: list[float],
-              fields: list[str]) -> tuple[float, float]:
+              fields: list[str], ease: float = 1.0) -> tuple[float, float]:
     """Append a pass of synchronised moves from where the axes stand: at rest until the
     spindle's index once the axes are free and the spindle at its speed, then locked to its
-    angle. Returns (index time, end time)."""
+    angle, its ramps ``ease`` times the shortest. Returns (index time, end time)."""
     spindle = builder.timelines[SPINDLE]
     speed = spindle.end_velocity
     start = np.array([builder.position(j) for j in joints])
-    sync = pass_motion(builder.machine, joints, start, points, leads, speed, fields)
+    sync = pass_motion(builder.machine, joints, start, points, leads, speed, fields, ease)
     ready = max(builder.free_from(joints), builder.spindle_ready, spindle.end_time)
     index = ready + (-spindle.position_at(ready)) % TWO_PI / speed
     for axis, joint in enumerate(joints):

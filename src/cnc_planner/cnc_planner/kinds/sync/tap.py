@@ -59,10 +59,14 @@ class _Tap(WritingSampler):
         out[0][:], out[1][:], out[2][:] = self.start + self.per_rad * phi, self.per_rad * dphi, self.per_rad * ddphi
 
 
-def plan_tap(builder: PlanBuilder, joints: list[str], bottom: np.ndarray, lead: float, field: str) -> tuple[float, float]:
+def plan_tap(builder: PlanBuilder, joints: list[str], bottom: np.ndarray, lead: float, field: str,
+             ease: float = 1.0) -> tuple[float, float]:
     """Append a rigid tap from where the axes stand to ``bottom`` (axis positions, m) and
     back, at ``lead`` (m per revolution); the spindle turning forward at its speed before and
-    after. Returns (index time, end time).
+    after. ``ease``: the ramps onto and off the lock that many times as long as the axes'
+    limits allow (acceleration / ease, jerk / ease^2; kinds.sync.margin); the spindle's
+    reversal keeps its limits (the tool follows it through the lead, the lock barely moves).
+    Returns (index time, end time).
 
     Raises:
         JobError: a lead faster than an axis may go, or a hole too shallow for the ramps and
@@ -81,8 +85,8 @@ def plan_tap(builder: PlanBuilder, joints: list[str], bottom: np.ndarray, lead: 
         if abs(velocity[j]) > machine.axes[joint].max_velocity:
             raise JobError(field, f"{to_mm(abs(velocity[j])) * 60:.6g} mm/min (lead x rpm) drives {joint} faster "
                                   f"than its {to_mm(machine.axes[joint].max_velocity) * 60:g} mm/min")
-    width = ramp_time(velocity, np.array([machine.axes[j].max_acceleration for j in joints]),
-                      np.array([machine.axes[j].max_jerk for j in joints]))
+    width = ramp_time(velocity, np.array([machine.axes[j].max_acceleration for j in joints]) / ease,
+                      np.array([machine.axes[j].max_jerk for j in joints]) / ease**2)
     limits = reversal_limits(machine, joints, direction, lead)
     coasting = velocity_change([0.0], [omega], [0.0], [0.0], [limits])
     coast = float(coasting.trajectory.at_time(coasting.duration)[0][0])  # the spindle's turn while it stops

@@ -15,6 +15,9 @@ through forward kinematics, must keep the tip within the chord tolerance of the
 programmed lines. Where it does not (a slow drive, a lever too long, a coarse encoder),
 the feed is lowered by SLOWDOWN and the traverse planned again, down to MIN_FEED_SHARE of
 the job's feed; below that the job is refused, naming what the tip would miss by.
+The same command must also hold on every drive inside the description's tolerance
+(kinds.path.corners): where the worst of them leaves TOLERANCE_SHARE of it, the stretches
+are planned again on less of the axes' jerk, and only below MIN_JERK_SHARE at a lower feed.
 
 The compensated command must stay within the axes' limits as described (the bridge's):
 where it does not (the traverse uses an axis's full velocity or acceleration, the
@@ -40,6 +43,7 @@ from cnc_servo_bridge.drive import DriveModel
 from cnc_planner.kinematics import Kinematics, SampledPath
 from cnc_planner.motion.compensation import COMPENSATION_TAIL, compensation_band, learned_command
 
+from .corners import TOLERANCE_SHARE, ToleranceCorners, soften
 from .polyline import distance_to_polyline
 
 LEAD_S = 0.1  # s at rest before the traverse: the compensated command leads the motion by up to this
@@ -56,7 +60,8 @@ class ExactTraverse:
     """The compensated traverse: commands on the servo grid from ``start`` (at rest at the
     first pose), the tip moving from ``start + lead`` for ``motion`` seconds, the command
     settled by ``duration``; ``feed`` the feed it runs at (m/s) and ``deviation`` the
-    predicted feedback tip's largest distance from the programmed lines (m)."""
+    predicted feedback tip's largest distance from the programmed lines (m) on the described
+    drives."""
 
     start: float
     lead: float
@@ -67,6 +72,9 @@ class ExactTraverse:
     deviation: float
     stops: int
     waypoints: int
+    corner_deviation: float  # m: the same on the worst drive, described or inside the tolerance (kinds.path.corners)
+    jerk_share: float  # the share of the axes' jerk the stretches were planned on (of their share)
+    excess: float  # how far the compensated command went beyond the axes' limits (ratio; the plain one is taken above 1)
 
     @property
     def duration(self) -> float:
@@ -83,18 +91,20 @@ class ExactTraverse:
 def exact_traverse(kin: Kinematics, machine: Machine, joints: list[str], points: np.ndarray,
                    tolerance: float, feed: float, start: float, period: float,
                    sample: Callable[[float], SampledPath],
-                   sections: Callable[[SampledPath, float], list]) -> ExactTraverse:
+                   sections: Callable[[SampledPath, float, float], list]) -> ExactTraverse:
     """The traverse from ``start`` (the axes at rest on the first pose) compensated against
     the drive model, at the job's ``feed`` or, where the predicted tip misses the
-    ``tolerance``, at the highest feed tried (by SLOWDOWN) that holds it.
+    ``tolerance``, at the highest feed tried (by SLOWDOWN) that holds it; on the least
+    jerk tried (kinds.path.corners) where only a drive inside the tolerance misses
+    TOLERANCE_SHARE of it.
 
     ``sample`` gives the waypoints at a feed, ``sections`` the stretches of waypoints on a
-    share of the limits (kinds.path.planning.traverse_sections).
+    share of the limits and a further share of their jerk (kinds.path.planning.traverse_sections).
 
     Raises:
         JobError: ``path.feed``: no feed down to MIN_FEED_SHARE of the job's holds the
-            tolerance on the drive model (the miss named), or no headroom keeps the
-            compensated command within the limits.
+            tolerance on the drive model and its tolerance's corners (the miss named), or
+            no headroom keeps the compensated command within the limits.
     """
     drive = DriveModel(machine, period, tuple(joints))
     band = min((compensation_band(DriveModel(machine, period, (j,)), machine.drive_axes[j].max_acceleration)
@@ -102,49 +112,72 @@ def exact_traverse(kin: Kinematics, machine: Machine, joints: list[str], points:
     # the limits the bridge holds the command to: the machine as described, not as derated
     v_max = np.array([machine.drive_axes[j].max_velocity for j in joints])
     a_max = np.array([machine.drive_axes[j].max_acceleration for j in joints])
-    tried, share, before = feed, 1.0, math.inf
-    for _ in range(MAX_TRIES):
+    corners = ToleranceCorners(machine, joints, period)
+    target = TOLERANCE_SHARE * tolerance
+    tail = math.ceil(COMPENSATION_TAIL / period)
+
+    def attempt(tried: float, share: float, jerk_share: float) -> ExactTraverse:
+        """The traverse at a feed, on a share of the limits and of that a share of the jerk,
+        compensated and predicted on the described drives and (where they hold) the corners."""
         path = sample(tried)
-        stretches = sections(path, share)
+        stretches = sections(path, share, jerk_share)
         p, v, a, lead, motion = _reference(stretches, path, joints, period)
         if motion > MAX_TRAVERSE_S:
             raise JobError("path.feed", f"the drives follow the path within chord_tolerance {to_mm(tolerance):g} mm "
                                         f"only at {to_mm_per_min(tried):.0f} mm/min or slower: it would take "
                                         f"{motion:.0f} s, more than {MAX_TRAVERSE_S:.0f} s")
-        tail = math.ceil(COMPENSATION_TAIL / period)
         correction = learned_command(drive, p, v, a, lead // 2, len(p) - 1 - tail, period, band)
         command = np.stack((p, v, a))
         command[:, :correction.shape[1]] += correction
         excess = _excess(command, v_max, a_max, period)
         if excess > 1.0:  # the plain command may do (stiff drives); else slower, on less of the limits
             command = np.stack((p, v, a))
-        deviation = _deviation(kin, drive, command, joints, points)
-        if deviation <= tolerance:
-            return ExactTraverse(start, lead * period, motion, period, command, tried, deviation,
-                                 max(len(stretches) - 1, 0), len(path.param))
+        tips, distances = _deviation(kin, drive, command, joints, points)
+        deviation = float(distances.max())
+        worst = max(deviation, corners.deviation(kin, command, points, tips, distances)) \
+            if corners and deviation <= tolerance else deviation
+        return ExactTraverse(start, lead * period, motion, period, command, tried, deviation,
+                             max(len(stretches) - 1, 0), len(path.param), worst, jerk_share, excess)
+
+    tried, share, jerk_share, before, softened = feed, 1.0, 1.0, math.inf, False
+    for _ in range(MAX_TRIES):
+        done = attempt(tried, share, jerk_share)
+        if corners and done.deviation <= tolerance and done.corner_deviation > target and not softened:
+            # only a drive inside the tolerance misses: softer stops, once (the lambda runs here, in this try)
+            done = soften(lambda j: attempt(tried, share, j), done, target)  # noqa: B023
+            jerk_share, softened = done.jerk_share, True
+        deviation, worst, excess = done.deviation, done.corner_deviation, done.excess
+        if deviation <= tolerance and worst <= (target if corners else tolerance):
+            return done
         if excess > 1.0:
             share *= HEADROOM
             factor = min(SLOWDOWN, 1.0 / math.sqrt(excess))
-        else:
+        elif deviation > tolerance:
             factor = min(SLOWDOWN, tolerance / deviation)
+        else:  # a corner misses on the softest stops: slower, the turns in place too (at the axes' speed);
+            # an arc's miss goes with the square of the speed, a stop's with the speed: the root of the two
+            factor = min(SLOWDOWN, math.sqrt(target / worst))
+            share *= factor
         # a correction that does not shrink when slower is the drive's, not the speed's: refuse
         stuck, before = excess > 1.0 and excess > 0.9 * before, excess
         if tried * factor < MIN_FEED_SHARE * feed or stuck:
             why = (f"the compensated command would break the axes' limits ({excess:.3g} x)" if excess > 1.0
-                   else f"the tip would miss by {to_mm(deviation) * 1000:.1f} um on the drive model")
+                   else f"the tip would miss by {to_mm(worst) * 1000:.1f} um on the drive model"
+                   + ("" if deviation > tolerance else " at a corner of its tolerance"))
             raise JobError("path.feed", f"the drives cannot keep the tip within chord_tolerance "
                                         f"{to_mm(tolerance):g} mm even at {to_mm_per_min(tried):.0f} mm/min: {why}")
         tried *= factor
     raise JobError("path.feed", f"no feed down to {to_mm_per_min(tried):.0f} mm/min keeps the tip within "
-                                f"chord_tolerance {to_mm(tolerance):g} mm on the drive model")
+                                f"chord_tolerance {to_mm(tolerance):g} mm on the drive model and the corners of "
+                                f"its tolerance")
 
 
 def _deviation(kin: Kinematics, drive: DriveModel, command: np.ndarray, joints: list[str],
-               points: np.ndarray) -> float:
-    """The largest distance (m) of the drive model's tip from the programmed lines."""
+               points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The drive model's tips (n, 3) and their distances (m) from the programmed lines."""
     feedback = drive.simulate(*command)[0]
     tips, _ = kin.fk_many({j: feedback[:, i] for i, j in enumerate(joints)})
-    return float(distance_to_polyline(tips, points).max())
+    return tips, distance_to_polyline(tips, points)
 
 
 def _excess(command: np.ndarray, v_max: np.ndarray, a_max: np.ndarray, period: float) -> float:

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-BLOCK = 512  # query points measured together against the segments near them
+BLOCK = 128  # query points measured together against the segments near them: 512 samples of a
+# 0.8 m/s path span a whole part, so every segment was near (3D_Chips: 7.9 s, now 1.1 s)
 
 
 def distance_to_polyline(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:

@@ -59,9 +59,8 @@ def _moving_span(t: np.ndarray, axes: np.ndarray, threshold: float) -> tuple[flo
 def _climb_to_r(z: np.ndarray, r_z: float, dither: float) -> int:
     """How many samples at the start the tip spends climbing to R from below it: a cycle
     begun below its R plane rises there first (LinuxCNC's preliminary move, hole-circle.ngc
-    starts at Z0 under R0.1). That is where the operation before left the tip, X/Y maybe
-    still settling from its rapid there: no hole visit, and no X/Y motion of this cycle's.
-    None if it starts above R or goes down first."""
+    starts at Z0 under R0.1): no hole visit, though X/Y moving meanwhile is still X/Y moving
+    below R. None if it starts above R or goes down first."""
     if not len(z) or z[0] >= r_z:
         return 0
     above = np.nonzero(z >= r_z)[0]
@@ -86,15 +85,17 @@ def analyze_drilling(
                       first hole) to this hole's r_up
       depth_mm        deepest point below surface_z (one for all holes or one per
                       hole), when surface_z is given
-    Job: ``safety_violations`` (samples below R off their hole, but for a start's climb to
-    R: _climb_to_r) and ``cycle_time_s``
+    Job: ``safety_violations`` (samples below R off their hole, or during a start's climb to
+    R off where it began: _climb_to_r) and ``cycle_time_s``
     from the first to the last axis motion (an axis farther than the tolerance from
     its rest at the start / at the end).
     """
     t, x, y, z = (np.asarray(a, dtype=float) for a in (t, x, y, z))
     h = np.asarray(holes, dtype=float).reshape(-1, 2)
+    climb = _climb_to_r(z, r_z, xy_tolerance)
+    strayed = int(np.sum(np.hypot(x[:climb] - x[0], y[:climb] - y[0]) > xy_tolerance))
     mask = z < r_z
-    mask[:_climb_to_r(z, r_z, xy_tolerance)] = False
+    mask[:climb] = False
     starts, ends = _runs(mask, t)
     below = np.nonzero(mask)[0]
     visit = np.searchsorted(starts, below, side="right") - 1
@@ -141,7 +142,7 @@ def analyze_drilling(
         if surface_z is not None:
             rows[j]["depth_mm"] = to_mm(float(surfaces[j] - zw[kd:ku].min()))
         r_up_prev = r_up
-    return {"holes": [rows[j] for j in range(len(h))], "safety_violations": int(np.sum(off)),
+    return {"holes": [rows[j] for j in range(len(h))], "safety_violations": int(np.sum(off)) + strayed,
             "cycle_time_s": job_end - job_start}
 
 

@@ -101,6 +101,9 @@ def test_a_start_below_r_climbs_to_it_without_a_hole_visit():
     assert result["safety_violations"] == 0
     assert a["r_down_s"] == pytest.approx(1.5) and b["r_down_s"] == pytest.approx(5.6)
     assert a["in_position_s"] == pytest.approx(0.9, abs=1e-3)
+    # X/Y leaving while the tip still climbs to R is X/Y moving below R: from 0.2 s on
+    early = analyze_drilling(T, np.where(T < 3.8, np.interp(T, [0.2, 0.4], [0.01, 0.0]), x), y, z, HOLES, R, TOL)
+    assert early["safety_violations"] == 99  # the 0.201..0.299 s samples: below R, off where it began
     # A start below R that goes down first is a visit of the hole it stands in (A: its
     # first visit begins with the run, its last ends at 3.5 s)
     z_down = np.where(T < 0.6, 0.001 - T / 0.6 * 0.001, np.where(T < 1.0, (T - 0.6) / 0.4 * 0.004, z))

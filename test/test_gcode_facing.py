@@ -237,3 +237,22 @@ def test_the_facing_program_runs_over_topics_judged_on_feedback(tmp_path):
     assert air["feed_mm"] == pytest.approx(turn["feed_mm"], abs=1.0)
     assert air["rapid_cut_mm"] == 0.0
     assert air["air_feed_mm"] <= turn["air_feed_mm"] + 0.5, (air, turn)
+
+
+def test_a_face_that_ends_on_the_spindle_axis_is_finished_from_the_axis():
+    """A G72 contour from the centre out (a cone to the axis, as lathe_g7x_face_boring.ngc): the
+    allowance offset of its first point lies beyond the axis, where the revolved part is the
+    profile's mirror image. The contour pass starts on the axis; the roughing passes run over
+    it by their clearance only, and no tip, at its radius, comes into the allowances."""
+    text = ("G18 G21 G8 G90 G94\nM3 S800\nF120\nG0 X1 Z1\no1 sub\n  G0 X0 Z-8\n  G1 X6 Z-5\n  G1 X12\n"
+            "  G1 X18 Z-2\n  G1 X24\no1 endsub\nG72 Q1 X1 Z1 D0.5 I0.5 R0.3\nM2\n")
+    op, = turn_ops(text)
+    t = op.turn
+    plan = plan_of(t)
+    contour = [m for (_, m) in plan.job_segments() if m.kind == "feed"][-len(t.profile):]
+    assert contour[0].x == pytest.approx(0.0, abs=1e-12)  # the contour pass comes down onto the axis
+    tips = np.vstack([np.linspace(a, m.end, 50) for a, m in plan.job_segments()])
+    assert tips[:, 1].min() == pytest.approx(-0.3e-3)  # the passes' clearance past the axis
+    revolved = np.abs(tips)  # at its radius on either side of the axis
+    profile, frame = list(map(tuple, t.profile)), frame_of(t)
+    assert max_gouge(revolved, profile, t.finish_allowance, t.finish_allowance_z, frame) == 0.0

@@ -6,6 +6,7 @@ not the feed, and at a small price in time."""
 from __future__ import annotations
 
 import functools
+from dataclasses import dataclass
 import tempfile
 from pathlib import Path
 
@@ -17,7 +18,7 @@ from cnc_msgs_py.job import parse_job
 from cnc_msgs_py.machine import exactly_as_described, load_machine
 from cnc_msgs_py.plant import Plant, tolerance_corners
 from cnc_msgs_py.schema import JobError
-from cnc_planner.kinds.path.corners import MIN_JERK_SHARE, TOLERANCE_SHARE, next_jerk_share
+from cnc_planner.kinds.path.corners import JERK_SLOPE, MIN_JERK_SHARE, TOLERANCE_SHARE, next_jerk_share, soften
 from cnc_planner.planning import plan_job
 from cnc_planner.report import build_report, predicted_run
 
@@ -100,10 +101,37 @@ def test_the_price_is_softer_stops_not_a_lower_feed():
 
 
 def test_the_jerk_share_steps_towards_the_target_by_secant():
-    assert next_jerk_share([(1.0, 0.032)], 0.018) == pytest.approx(np.exp(4 * np.log(0.018 / 0.032)))
+    assert next_jerk_share([(1.0, 0.032)], 0.018) == pytest.approx(np.exp(np.log(0.018 / 0.032) / JERK_SLOPE))
     # two tries measure the slope: halving the share took 0.03 to 0.02, so 0.0133 needs another half
     assert next_jerk_share([(1.0, 0.03), (0.5, 0.02)], 0.02 / 1.5) == pytest.approx(0.25)
     assert next_jerk_share([(0.02, 0.05)], 0.001) == MIN_JERK_SHARE  # never below the floor
+
+
+@dataclass
+class Synthetic:
+    """A plan whose stretches' worst tips follow a law of the jerk share each."""
+
+    jerk_shares: np.ndarray
+    stretch_deviations: np.ndarray
+
+
+def test_each_stretch_is_softened_on_its_own_and_only_where_it_helps():
+    """Stop overshoots falling with the jerk share (as on mill3: 0.032 mm at 1, 0.021 at 0.1,
+    0.011 at 0.03), a stretch that holds as it is, and one whose miss the jerk does not
+    change (an arc at speed): the first two hold near the target, the third keeps its
+    share, the fourth is back at its full jerk for the caller to slow down."""
+    laws = [lambda j: 0.0323 * j ** 0.27, lambda j: 0.025 * j ** 0.4, lambda j: 0.01 + 0 * j,
+            lambda j: 0.0346 + 0 * j]
+    target = 0.018
+
+    def attempt(shares: np.ndarray) -> Synthetic:
+        return Synthetic(shares, np.array([law(j) for law, j in zip(laws, shares)]))
+
+    done = soften(attempt, attempt(np.ones(4)), target)
+    tips = done.stretch_deviations
+    assert np.all(tips[:3] <= target) and np.all(tips[:2] >= 0.8 * target), tips
+    assert done.jerk_shares[2] == 1.0 and done.jerk_shares[3] == 1.0
+    assert MIN_JERK_SHARE < done.jerk_shares[0] < done.jerk_shares[1] < 1.0
 
 
 def test_a_c_turn_no_feed_holds_inside_the_tolerance_is_refused_naming_the_corner():

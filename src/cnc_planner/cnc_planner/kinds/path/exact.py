@@ -16,8 +16,9 @@ programmed lines. Where it does not (a slow drive, a lever too long, a coarse en
 the feed is lowered by SLOWDOWN and the traverse planned again, down to MIN_FEED_SHARE of
 the job's feed; below that the job is refused, naming what the tip would miss by.
 The same command must also hold on every drive inside the description's tolerance
-(kinds.path.corners): where the worst of them leaves TOLERANCE_SHARE of it, the stretches
-are planned again on less of the axes' jerk, and only below MIN_JERK_SHARE at a lower feed.
+(kinds.path.corners): where the worst of them leaves TOLERANCE_SHARE of it about a
+stretch, that stretch is planned again on less of its jerk, and where that does not do at
+a lower feed.
 
 The compensated command must stay within the axes' limits as described (the bridge's):
 where it does not (the traverse uses an axis's full velocity or acceleration, the
@@ -43,7 +44,7 @@ from cnc_servo_bridge.drive import DriveModel
 from cnc_planner.kinematics import Kinematics, SampledPath
 from cnc_planner.motion.compensation import COMPENSATION_TAIL, compensation_band, learned_command
 
-from .corners import TOLERANCE_SHARE, ToleranceCorners, soften
+from .corners import NEAR_SHARE, TOLERANCE_SHARE, ToleranceCorners, soften
 from .polyline import distance_to_polyline
 
 LEAD_S = 0.1  # s at rest before the traverse: the compensated command leads the motion by up to this
@@ -73,8 +74,19 @@ class ExactTraverse:
     stops: int
     waypoints: int
     corner_deviation: float  # m: the same on the worst drive, described or inside the tolerance (kinds.path.corners)
-    jerk_share: float  # the share of the axes' jerk the stretches were planned on (of their share)
+    stretch_deviations: np.ndarray  # m: that about each stretch between stops (ToleranceCorners.by_stretch)
+    jerk_shares: np.ndarray  # of its jerk each stretch was planned on
     excess: float  # how far the compensated command went beyond the axes' limits (ratio; the plain one is taken above 1)
+
+    @property
+    def jerk_share(self) -> float:
+        """The least share of the jerk a stretch runs on."""
+        return float(self.jerk_shares.min(initial=1.0))
+
+    @property
+    def softened(self) -> int:
+        """How many stretches run on less than their jerk."""
+        return int(np.count_nonzero(self.jerk_shares < 1.0))
 
     @property
     def duration(self) -> float:
@@ -91,15 +103,15 @@ class ExactTraverse:
 def exact_traverse(kin: Kinematics, machine: Machine, joints: list[str], points: np.ndarray,
                    tolerance: float, feed: float, start: float, period: float,
                    sample: Callable[[float], SampledPath],
-                   sections: Callable[[SampledPath, float, float], list]) -> ExactTraverse:
+                   sections: Callable[[SampledPath, float], list]) -> ExactTraverse:
     """The traverse from ``start`` (the axes at rest on the first pose) compensated against
     the drive model, at the job's ``feed`` or, where the predicted tip misses the
-    ``tolerance``, at the highest feed tried (by SLOWDOWN) that holds it; on the least
-    jerk tried (kinds.path.corners) where only a drive inside the tolerance misses
-    TOLERANCE_SHARE of it.
+    ``tolerance``, at the highest feed tried (by SLOWDOWN) that holds it; the stretches
+    about which a drive inside the tolerance misses TOLERANCE_SHARE of it on less of
+    their jerk (kinds.path.corners).
 
     ``sample`` gives the waypoints at a feed, ``sections`` the stretches of waypoints on a
-    share of the limits and a further share of their jerk (kinds.path.planning.traverse_sections).
+    share of the limits (kinds.path.planning.traverse_sections).
 
     Raises:
         JobError: ``path.feed``: no feed down to MIN_FEED_SHARE of the job's holds the
@@ -116,11 +128,14 @@ def exact_traverse(kin: Kinematics, machine: Machine, joints: list[str], points:
     target = TOLERANCE_SHARE * tolerance
     tail = math.ceil(COMPENSATION_TAIL / period)
 
-    def attempt(tried: float, share: float, jerk_share: float) -> ExactTraverse:
-        """The traverse at a feed, on a share of the limits and of that a share of the jerk,
-        compensated and predicted on the described drives and (where they hold) the corners."""
+    def attempt(tried: float, share: float, jerk: float | np.ndarray) -> ExactTraverse:
+        """The traverse at a feed, on a share of the limits and of that a share of the jerk
+        (one for all stretches, or one each), compensated and predicted on the described
+        drives and (where they hold) the corners."""
         path = sample(tried)
-        stretches = sections(path, share, jerk_share)
+        stretches = sections(path, share)
+        shares = np.broadcast_to(np.asarray(jerk, float), (len(stretches),))
+        stretches = [s if j == 1.0 else s.softened(j) for s, j in zip(stretches, shares)]
         p, v, a, lead, motion = _reference(stretches, path, joints, period)
         if motion > MAX_TRAVERSE_S:
             raise JobError("path.feed", f"the drives follow the path within chord_tolerance {to_mm(tolerance):g} mm "
@@ -134,18 +149,21 @@ def exact_traverse(kin: Kinematics, machine: Machine, joints: list[str], points:
             command = np.stack((p, v, a))
         tips, distances = _deviation(kin, drive, command, joints, points)
         deviation = float(distances.max())
-        worst = max(deviation, corners.deviation(kin, command, points, tips, distances)) \
-            if corners and deviation <= tolerance else deviation
+        if corners and deviation <= tolerance:
+            distances = corners.tip_deviations(kin, command, points, tips, distances, NEAR_SHARE * target)
+        by_stretch = corners.by_stretch(distances, [s.duration for s in stretches], lead)
         return ExactTraverse(start, lead * period, motion, period, command, tried, deviation,
-                             max(len(stretches) - 1, 0), len(path.param), worst, jerk_share, excess)
+                             max(len(stretches) - 1, 0), len(path.param), float(distances.max()), by_stretch,
+                             shares.copy(), excess)
 
-    tried, share, jerk_share, before, softened = feed, 1.0, 1.0, math.inf, False
+    tried, share, jerk, before, softened = feed, 1.0, 1.0, math.inf, False
     for _ in range(MAX_TRIES):
-        done = attempt(tried, share, jerk_share)
+        done = attempt(tried, share, jerk)
         if corners and done.deviation <= tolerance and done.corner_deviation > target and not softened:
-            # only a drive inside the tolerance misses: softer stops, once (the lambda runs here, in this try)
-            done = soften(lambda j: attempt(tried, share, j), done, target)  # noqa: B023
-            jerk_share, softened = done.jerk_share, True
+            # only a drive inside the tolerance misses: softer stops, once (the lambda runs here, in this try);
+            # slower from there, every stretch on the least share any took (a lower feed has stretches of its own)
+            done = soften(lambda shares: attempt(tried, share, shares), done, target)  # noqa: B023
+            jerk, softened = done.jerk_share, True
         deviation, worst, excess = done.deviation, done.corner_deviation, done.excess
         if deviation <= tolerance and worst <= (target if corners else tolerance):
             return done

@@ -27,6 +27,7 @@ the chord tolerance (kinds.path.exact): the tip is exact on feedback, not only o
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -77,17 +78,13 @@ def plan_path(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin:
     # the compensation starts from drives at rest on the first pose: wait until the tip is there
     arrived += settle_time(builder, kin, arrived, max(SETTLE_SHARE * p.chord_tolerance, SETTLE_FLOOR), SERVO_PERIOD)
     start = SERVO_PERIOD * math.ceil(max(arrived, builder.spindle_ready) / SERVO_PERIOD - 1e-9)
-
-    def sections(sampled: SampledPath, share: float, jerk_share: float) -> list[Traverse]:
-        return traverse_sections(sampled, joints, machine, share=share, jerk_share=jerk_share)
-
     exact = exact_traverse(kin, machine, joints, points, p.chord_tolerance, p.feed, start, SERVO_PERIOD, sample,
-                           sections)
+                           lambda sampled, share: traverse_sections(sampled, joints, machine, share=share))
     t = start + exact.lead
     builder.event(t, "path_start", points=len(p.points), waypoints=exact.waypoints, stops=exact.stops,
                   feed=p.feed, planned_feed=exact.feed, chord_tolerance=p.chord_tolerance,
                   predicted_tip_deviation=exact.deviation, corner_tip_deviation=exact.corner_deviation,
-                  jerk_share=exact.jerk_share)
+                  jerk_share=exact.jerk_share, softened_stretches=exact.softened)
     for dof, joint in enumerate(joints):
         builder.timelines[joint].add(Piece(start, exact.duration, exact.sampler(dof)), float(path.joints[joint][-1]))
     builder.event(t + exact.motion, "path_end", chord_tolerance=p.chord_tolerance, duration=exact.motion)
@@ -121,6 +118,11 @@ class Traverse:
         self._cache = (key, out)
         return out
 
+    def softened(self, jerk_share: float) -> Traverse:
+        """The stretch on a share of its jerk: a softer start and stop, which a drive unlike its
+        description overshoots less (kinds.path.corners)."""
+        return Traverse(self.knots, self.q, replace(self.limits, jerk=self.limits.jerk * jerk_share))
+
     def sampler(self, dof: int):
         def sample(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             p, v, a = self.sample_all(t)
@@ -129,8 +131,7 @@ class Traverse:
 
 
 def traverse_sections(path: SampledPath, joints: list[str], machine: Machine,
-                      period: float = INTERPOLATION_PERIOD, share: float = 1.0, jerk_share: float = 1.0
-                      ) -> list[Traverse]:
+                      period: float = INTERPOLATION_PERIOD, share: float = 1.0) -> list[Traverse]:
     """Split the sampled path at its exact stops and give each stretch limits for ``s``
     that keep every joint within its velocity, acceleration and jerk on every segment,
     the velocity steps at the waypoints included (over one interpolation ``period``).
@@ -141,8 +142,7 @@ def traverse_sections(path: SampledPath, joints: list[str], machine: Machine,
     that is quicker: an isolated corner stays a stop, a run of small steps (C turning
     on the spot, a finely sampled curve at a high feed) becomes one slower stretch.
     ``share`` of each axis's velocity, acceleration and jerk is the stretches' to use:
-    the rest is room for the drive compensation (kinds.path.exact). ``jerk_share`` of that
-    jerk softens the stops for the drives inside the tolerance (kinds.path.corners).
+    the rest is room for the drive compensation (kinds.path.exact).
     """
     q = np.stack([path.joints[j] for j in joints], axis=1)
     durations = np.asarray(path.durations, float)
@@ -154,7 +154,7 @@ def traverse_sections(path: SampledPath, joints: list[str], machine: Machine,
     axes = [machine.axes[j] for j in joints]
     v_max = share * np.array([a.max_velocity for a in axes])
     a_max = share * np.array([a.max_acceleration for a in axes])
-    j_max = share * jerk_share * np.array([a.max_jerk for a in axes])
+    j_max = share * np.array([a.max_jerk for a in axes])
     slopes = np.abs(np.diff(q, axis=0) / np.diff(knots)[:, None])
     steps = np.abs(np.diff(np.diff(q, axis=0) / np.diff(knots)[:, None], axis=0))  # at s' = 1, inner knots
     with np.errstate(divide="ignore"):

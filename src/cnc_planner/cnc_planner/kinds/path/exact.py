@@ -156,14 +156,12 @@ def exact_traverse(kin: Kinematics, machine: Machine, joints: list[str], points:
                              max(len(stretches) - 1, 0), len(path.param), float(distances.max()), by_stretch,
                              shares.copy(), excess)
 
-    tried, share, jerk, before, softened = feed, 1.0, 1.0, math.inf, False
+    tried, share, before = feed, 1.0, math.inf
     for _ in range(MAX_TRIES):
-        done = attempt(tried, share, jerk)
-        if corners and done.deviation <= tolerance and done.corner_deviation > target and not softened:
-            # only a drive inside the tolerance misses: softer stops, once (the lambda runs here, in this try);
-            # slower from there, every stretch on the least share any took (a lower feed has stretches of its own)
+        done = attempt(tried, share, 1.0)
+        if corners and done.deviation <= tolerance and done.corner_deviation > target:
+            # only a drive inside the tolerance misses: softer stops at this feed (the lambda runs here, now)
             done = soften(lambda shares: attempt(tried, share, shares), done, target)  # noqa: B023
-            jerk, softened = done.jerk_share, True
         deviation, worst, excess = done.deviation, done.corner_deviation, done.excess
         if deviation <= tolerance and worst <= (target if corners else tolerance):
             return done

@@ -17,7 +17,6 @@ from cnc_msgs_py.gcode.document import job_document
 from cnc_msgs_py.job import parse_job
 from cnc_msgs_py.machine import exactly_as_described, load_machine
 from cnc_msgs_py.plant import Plant, tolerance_corners
-from cnc_msgs_py.schema import JobError
 from cnc_planner.kinds.path.corners import JERK_SLOPE, MIN_JERK_SHARE, TOLERANCE_SHARE, next_jerk_share, soften
 from cnc_planner.planning import plan_job
 from cnc_planner.report import build_report, predicted_run
@@ -109,39 +108,30 @@ def test_the_jerk_share_steps_towards_the_target_by_secant():
 
 @dataclass
 class Synthetic:
-    """A plan whose stretches' worst tips follow a law of the jerk share each."""
+    """A plan whose stretches' worst tips follow a law of their jerk and speed shares each."""
 
     jerk_shares: np.ndarray
+    speed_shares: np.ndarray
     stretch_deviations: np.ndarray
 
 
 def test_each_stretch_is_softened_on_its_own_and_only_where_it_helps():
     """Stop overshoots falling with the jerk share (as on mill3: 0.032 mm at 1, 0.021 at 0.1,
-    0.011 at 0.03), a stretch that holds as it is, and one whose miss the jerk does not
-    change (an arc at speed): the first two hold near the target, the third keeps its
-    share, the fourth is back at its full jerk for the caller to slow down."""
-    laws = [lambda j: 0.0323 * j ** 0.27, lambda j: 0.025 * j ** 0.4, lambda j: 0.01 + 0 * j,
-            lambda j: 0.0346 + 0 * j]
+    0.011 at 0.03), a stretch that holds as it is, and an arc at speed whose miss the jerk
+    does not change but the square of the speed does: the stops hold near the target at
+    full speed, the third stretch keeps its shares, the arc is back at its full jerk and
+    runs slower, alone."""
+    laws = [lambda j, v: 0.0323 * j ** 0.27, lambda j, v: 0.025 * j ** 0.4, lambda j, v: 0.01 + 0 * j,
+            lambda j, v: 0.0346 * v ** 2]
     target = 0.018
 
-    def attempt(shares: np.ndarray) -> Synthetic:
-        return Synthetic(shares, np.array([law(j) for law, j in zip(laws, shares)]))
+    def attempt(jerks: np.ndarray, speeds: np.ndarray) -> Synthetic:
+        return Synthetic(jerks, speeds, np.array([law(j, v) for law, j, v in zip(laws, jerks, speeds)]))
 
-    done = soften(attempt, attempt(np.ones(4)), target)
+    done = soften(attempt, attempt(np.ones(4), np.ones(4)), target)
     tips = done.stretch_deviations
-    assert np.all(tips[:3] <= target) and np.all(tips[:2] >= 0.8 * target), tips
-    assert done.jerk_shares[2] == 1.0 and done.jerk_shares[3] == 1.0
+    assert np.all(tips <= target) and np.all(tips[:2] >= 0.8 * target), tips
+    assert done.jerk_shares[2] == done.jerk_shares[3] == 1.0
     assert MIN_JERK_SHARE < done.jerk_shares[0] < done.jerk_shares[1] < 1.0
+    assert list(done.speed_shares[:3]) == [1.0, 1.0, 1.0] and 0.5 < done.speed_shares[3] <= np.sqrt(target / 0.0346)
 
-
-def test_a_c_turn_no_feed_holds_inside_the_tolerance_is_refused_naming_the_corner():
-    """C turning on the spot with the tip 80 mm off its axis, within 2 um: on the described
-    drives it plans (test_path_job trusts them), but the tolerance's corners miss by 116 um
-    at the feed and still by some um at the slowest feed allowed: refused, not run beyond P."""
-    sin, cos = np.sin(np.radians(20.0)), np.cos(np.radians(20.0))
-    job = parse_job({"schema": "cnc_job/1", "job_id": "c_turn", "kind": "path", "machine": "5ax_head_table",
-                     "tool": {"length": 60.0},
-                     "path": {"points": [[80, 0, 0], [80, 30, 0], [50, 60, -10]], "feed": 1000.0,
-                              "chord_tolerance": 0.002, "tool_axis": [[sin, 0, cos], [0, 0, 1], [0, sin, cos]]}})
-    with pytest.raises(JobError, match=r"path\.feed: .*chord_tolerance 0\.002 mm.*at a corner of its tolerance"):
-        plan_job(job, load_machine(job.machine))

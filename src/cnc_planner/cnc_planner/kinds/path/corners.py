@@ -42,7 +42,8 @@ MIN_JERK_SHARE = 0.01  # least share of the jerk tried; below it the feed is low
 JERK_SLOPE = 0.4  # d log(deviation) / d log(jerk share) assumed before two tries measure it
 SLOPE_RANGE = (0.1, 1.0)  # the measured slope clipped to this, so that a flat step cannot run away
 STEP_RANGE = (0.05, 0.7)  # factor on the jerk share per try
-JERK_TRIES = 7  # plans at most to find each stretch's share of the jerk (soften)
+JERK_TRIES = 8  # plans at most to find each stretch's share of the jerk and of the speed (soften)
+SPEED_STEP = (0.5, 0.9)  # factor on a stretch's speed per try where the jerk does not help
 MIN_SLOPE = 0.05  # d log(deviation) / d log(jerk share) below this: softening that stretch gains nothing
 REFINED = 0.8  # of the target: a stretch that holds with less tries a larger share, if tries are left
 AIM = 0.9  # of the target: where a share between two tries is aimed
@@ -124,41 +125,52 @@ class ToleranceCorners:
 
 
 class Tried(Protocol):
-    """A traverse planned on a share of the jerk per stretch, with its worst predicted tip
-    per stretch (m)."""
+    """A traverse planned on a share of the jerk and of the speed per stretch, with its worst
+    predicted tip per stretch (m)."""
 
     jerk_shares: np.ndarray
+    speed_shares: np.ndarray
     stretch_deviations: np.ndarray
 
 
 T = TypeVar("T", bound=Tried)
 
 
-def soften(attempt: Callable[[np.ndarray], T], first: T, target: float) -> T:
+def soften(attempt: Callable[[np.ndarray, np.ndarray], T], first: T, target: float) -> T:
     """The traverse with each stretch whose worst tip misses ``target`` on less of its jerk,
-    from ``first``; ``attempt`` plans one on given shares per stretch. Each stretch on its
-    own tries: one that misses steps down by next_jerk_share; one that holds with less
-    than REFINED of the target, below a share that missed by more than BRACKET_RATIO, tries
-    between the two (between); one whose softening gained nothing (a log-log slope below
-    MIN_SLOPE: its miss is not its stops', an arc's centripetal acceleration is) or reached
-    MIN_JERK_SHARE steps no more, back at its first share if softening gained less than
-    NO_GAIN in all (it would cost time for nothing). JERK_TRIES plans at most, the last on
-    every stretch's largest share that held; returns the last plan, which the caller
-    slows down if a stretch still misses."""
+    from ``first``; ``attempt`` plans one on given shares of the jerk and of the speed per
+    stretch. Each stretch on its own tries: one that misses steps down by next_jerk_share;
+    one that holds with less than REFINED of the target, below a share that missed by more
+    than BRACKET_RATIO, tries between the two (between); one whose softening gained nothing
+    (a log-log slope below MIN_SLOPE: its miss is not its stops', the centripetal
+    acceleration of an arc or of a 5-axis tool axis turning is) or reached MIN_JERK_SHARE
+    steps no more, back at its first share if softening gained less than NO_GAIN in all
+    (it would cost time for nothing), and from then on runs slower while it misses (the
+    square root of target over miss, within SPEED_STEP, per try: an arc's miss goes with
+    the square of the speed, a stop's with the speed) instead of the whole path. JERK_TRIES
+    plans at most, the last on every stretch's largest jerk share that held; returns the
+    last plan, which the caller slows down as a whole if a stretch still misses."""
     shares = first.jerk_shares.astype(float)
+    speeds = first.speed_shares.astype(float)
     n = len(shares)
     missed: list[list[tuple[float, float]]] = [[] for _ in range(n)]  # (share, deviation) that missed
     held: list[tuple[float, float] | None] = [None] * n  # the largest share that held
     settled = np.zeros(n, bool)  # stretches that step no more
     done = first
     for attempt_left in range(JERK_TRIES - 1, -1, -1):
-        before = shares.copy()
+        before = np.concatenate((shares, speeds))
         for k in range(n):
             tip = float(done.stretch_deviations[k])
             if settled[k] or (tip <= target and held[k] is None and not missed[k]):
-                continue  # left alone: it holds on its own, or stepping gained nothing
+                if settled[k] and tip > target:  # its jerk is done with: slower
+                    speeds[k] *= float(np.clip(math.sqrt(target / tip), *SPEED_STEP))
+                continue  # else left alone: it holds on its own
             if tip > target:
                 missed[k].append((float(shares[k]), tip))
+                if held[k] is None and shares[k] <= MIN_JERK_SHARE:
+                    settled[k] = True
+                    speeds[k] *= float(np.clip(math.sqrt(target / tip), *SPEED_STEP))
+                    continue
             elif held[k] is None or shares[k] > held[k][0]:
                 held[k] = (float(shares[k]), tip)
             shares[k] = _next_share(missed[k], held[k], target, bool(attempt_left))
@@ -168,9 +180,9 @@ def soften(attempt: Callable[[np.ndarray], T], first: T, target: float) -> T:
                     shares[k] = missed[k][0][0]
                 else:
                     shares[k] = missed[k][-1][0]
-        if np.array_equal(shares, before):
+        if np.array_equal(np.concatenate((shares, speeds)), before):
             break
-        done = attempt(shares.copy())
+        done = attempt(shares.copy(), speeds.copy())
     return done
 
 
@@ -180,7 +192,7 @@ def _next_share(missed: list[tuple[float, float]], held: tuple[float, float] | N
     miss and its held share if ``refine`` and that share uses less than REFINED of the target
     and the two are more than BRACKET_RATIO apart; else the held share."""
     if held is None:
-        return next_jerk_share(missed, target) if missed[-1][0] > MIN_JERK_SHARE else MIN_JERK_SHARE
+        return next_jerk_share(missed, target)
     below = min(missed, default=None)
     if refine and below is not None and held[1] < REFINED * target and below[0] > BRACKET_RATIO * held[0]:
         return between(below, held, target)

@@ -76,6 +76,7 @@ class ExactTraverse:
     corner_deviation: float  # m: the same on the worst drive, described or inside the tolerance (kinds.path.corners)
     stretch_deviations: np.ndarray  # m: that about each stretch between stops (ToleranceCorners.by_stretch)
     jerk_shares: np.ndarray  # of its jerk each stretch was planned on
+    speed_shares: np.ndarray  # of its speed (the feed, or the axes' speed where that binds) each stretch runs at
     excess: float  # how far the compensated command went beyond the axes' limits (ratio; the plain one is taken above 1)
 
     @property
@@ -85,8 +86,13 @@ class ExactTraverse:
 
     @property
     def softened(self) -> int:
-        """How many stretches run on less than their jerk."""
-        return int(np.count_nonzero(self.jerk_shares < 1.0))
+        """How many stretches run on less than their jerk or their speed."""
+        return int(np.count_nonzero((self.jerk_shares < 1.0) | (self.speed_shares < 1.0)))
+
+    @property
+    def speed_share(self) -> float:
+        """The least share of its speed a stretch runs at."""
+        return float(self.speed_shares.min(initial=1.0))
 
     @property
     def duration(self) -> float:
@@ -128,14 +134,16 @@ def exact_traverse(kin: Kinematics, machine: Machine, joints: list[str], points:
     target = TOLERANCE_SHARE * tolerance
     tail = math.ceil(COMPENSATION_TAIL / period)
 
-    def attempt(tried: float, share: float, jerk: float | np.ndarray) -> ExactTraverse:
+    def attempt(tried: float, share: float, jerk: np.ndarray | None = None, speed: np.ndarray | None = None
+                ) -> ExactTraverse:
         """The traverse at a feed, on a share of the limits and of that a share of the jerk
-        (one for all stretches, or one each), compensated and predicted on the described
-        drives and (where they hold) the corners."""
+        and of the speed per stretch (all of them where None), compensated and predicted on
+        the described drives and (where they hold) the corners."""
         path = sample(tried)
         stretches = sections(path, share)
-        shares = np.broadcast_to(np.asarray(jerk, float), (len(stretches),))
-        stretches = [s if j == 1.0 else s.softened(j) for s, j in zip(stretches, shares)]
+        jerks = np.ones(len(stretches)) if jerk is None else jerk
+        speeds = np.ones(len(stretches)) if speed is None else speed
+        stretches = [s if j == v == 1.0 else s.softened(j, v) for s, j, v in zip(stretches, jerks, speeds)]
         p, v, a, lead, motion = _reference(stretches, path, joints, period)
         if motion > MAX_TRAVERSE_S:
             raise JobError("path.feed", f"the drives follow the path within chord_tolerance {to_mm(tolerance):g} mm "
@@ -154,14 +162,14 @@ def exact_traverse(kin: Kinematics, machine: Machine, joints: list[str], points:
         by_stretch = corners.by_stretch(distances, [s.duration for s in stretches], lead)
         return ExactTraverse(start, lead * period, motion, period, command, tried, deviation,
                              max(len(stretches) - 1, 0), len(path.param), float(distances.max()), by_stretch,
-                             shares.copy(), excess)
+                             jerks, speeds, excess)
 
     tried, share, before = feed, 1.0, math.inf
     for _ in range(MAX_TRIES):
-        done = attempt(tried, share, 1.0)
+        done = attempt(tried, share)
         if corners and done.deviation <= tolerance and done.corner_deviation > target:
             # only a drive inside the tolerance misses: softer stops at this feed (the lambda runs here, now)
-            done = soften(lambda shares: attempt(tried, share, shares), done, target)  # noqa: B023
+            done = soften(lambda jerks, speeds: attempt(tried, share, jerks, speeds), done, target)  # noqa: B023
         deviation, worst, excess = done.deviation, done.corner_deviation, done.excess
         if deviation <= tolerance and worst <= (target if corners else tolerance):
             return done

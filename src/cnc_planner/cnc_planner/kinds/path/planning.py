@@ -84,7 +84,8 @@ def plan_path(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, kin:
     builder.event(t, "path_start", points=len(p.points), waypoints=exact.waypoints, stops=exact.stops,
                   feed=p.feed, planned_feed=exact.feed, chord_tolerance=p.chord_tolerance,
                   predicted_tip_deviation=exact.deviation, corner_tip_deviation=exact.corner_deviation,
-                  jerk_share=exact.jerk_share, softened_stretches=exact.softened)
+                  jerk_share=exact.jerk_share, speed_share=exact.speed_share,
+                  softened_stretches=exact.softened)
     for dof, joint in enumerate(joints):
         builder.timelines[joint].add(Piece(start, exact.duration, exact.sampler(dof)), float(path.joints[joint][-1]))
     builder.event(t + exact.motion, "path_end", chord_tolerance=p.chord_tolerance, duration=exact.motion)
@@ -118,10 +119,11 @@ class Traverse:
         self._cache = (key, out)
         return out
 
-    def softened(self, jerk_share: float) -> Traverse:
-        """The stretch on a share of its jerk: a softer start and stop, which a drive unlike its
-        description overshoots less (kinds.path.corners)."""
-        return Traverse(self.knots, self.q, replace(self.limits, jerk=self.limits.jerk * jerk_share))
+    def softened(self, jerk_share: float, speed_share: float = 1.0) -> Traverse:
+        """The stretch on a share of its jerk and of its speed: a softer start and stop and
+        slower turns, which a drive unlike its description overshoots less (kinds.path.corners)."""
+        return Traverse(self.knots, self.q, replace(self.limits, velocity=self.limits.velocity * speed_share,
+                                                    jerk=self.limits.jerk * jerk_share))
 
     def sampler(self, dof: int):
         def sample(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -17,8 +17,9 @@ tenth of the jerk takes the worst corner from 0.032 to 0.021 mm for 3 % more pat
 where the lower feed that holds P would cost some 70 %; the acceleration and the corner
 speeds are left alone (less of them costs time on the arcs and gains nothing more). Each
 stretch is softened only as far as its own stops need. Where the jerk does not help (an
-arc's centripetal acceleration, a 5-axis tilt's), the caller lowers the feed. A closed
-tolerance trusts the description: nothing is checked.
+arc's centripetal acceleration, a 5-axis tool axis turning), that stretch alone runs
+slower; only where a stretch still misses after JERK_TRIES plans does the caller lower
+the feed of the whole path. A closed tolerance trusts the description: nothing is checked.
 """
 from __future__ import annotations
 
@@ -38,7 +39,7 @@ from cnc_planner.motion.compensation import tolerance_drives
 from .polyline import distance_to_polyline
 
 TOLERANCE_SHARE = 0.9  # of the chord tolerance the worst drive inside the tolerance may use
-MIN_JERK_SHARE = 0.01  # least share of the jerk tried; below it the feed is lowered
+MIN_JERK_SHARE = 0.01  # least share of the jerk tried; a stretch that still misses there runs slower
 JERK_SLOPE = 0.4  # d log(deviation) / d log(jerk share) assumed before two tries measure it
 SLOPE_RANGE = (0.1, 1.0)  # the measured slope clipped to this, so that a flat step cannot run away
 STEP_RANGE = (0.05, 0.7)  # factor on the jerk share per try
@@ -89,7 +90,7 @@ class ToleranceCorners:
         it is above ``floor`` (at most ``floor`` elsewhere); ``tips`` and ``distances`` are
         the described drives' (n, 3) and (n,). A corner's tip is no farther from the lines
         than the described tip plus the distance between the two, so only the samples where
-        that bound passes ``floor`` are measured (on 3D_Chips a few % of them)."""
+        that bound passes ``floor`` are measured."""
         width = len(self.joints)
         per_run = max(1, COLUMNS_AT_ONCE // width) * width
         worst = distances.copy()

@@ -17,8 +17,9 @@ the feed is lowered by SLOWDOWN and the traverse planned again, down to MIN_FEED
 the job's feed; below that the job is refused, naming what the tip would miss by.
 The same command must also hold on every drive inside the description's tolerance
 (kinds.path.corners): where the worst of them leaves TOLERANCE_SHARE of it about a
-stretch, that stretch is planned again on less of its jerk, and where that does not do at
-a lower feed.
+stretch, that stretch is planned again on less of its jerk or, where that does not help,
+slower; where that still does not do, the whole traverse at a lower feed (the square
+root of target over miss: a stop's miss goes with the speed, an arc's with its square).
 
 The compensated command must stay within the axes' limits as described (the bridge's):
 where it does not (the traverse uses an axis's full velocity or acceleration, the

@@ -51,14 +51,16 @@ def test_a_parameterised_program_drills_every_hole_on_feedback(tmp_path, name, d
 
 
 def test_a_failed_operation_fails_the_program(tmp_path):
-    """A G98 drill cycle straight after a rapid to its clearance plane: the drill starts while
-    the rapid's feedback still settles (X/Y 50 um off the first hole, Z 0.1 mm below the G98
-    plane), which its judge counts as X/Y moving below the plane. The program's verdict fails
-    with it and cnc-run exits 4: an operation's miss is never a silent success."""
+    """A G98 drill cycle on drives far softer than described (position gain 12/s of 50/s,
+    well outside the stated tolerance that the planner's margins cover): X/Y still moves as
+    the tip goes below R, which the drill's judge counts. The program's verdict fails with it
+    and cnc-run exits 4: an operation's miss is never a silent success."""
     from support import cnc, load_report
     program = tmp_path / "g98.ngc"
     program.write_text("G21 G90 G17 G94\nM3 S2000\nG0 X-10 Y15 Z10\nG98 G81 X-10 Y15 Z-8 R2 F300\nX10\nG80\nM5\nM2\n")
-    result = cnc("cnc-run", program, "--machine", "mill3", "--out", tmp_path / "run")
+    plant = tmp_path / "far_off.yaml"
+    plant.write_text("name: mill3_far_off\ndrive:\n" + "".join(f"  {a}: {{kp: 12.0}}\n" for a in "xyz"))
+    result = cnc("cnc-run", program, "--machine", "mill3", "--plant", plant, "--out", tmp_path / "run")
     assert result.returncode == 4, result.stderr[-2000:]
     report = load_report(tmp_path / "run")
     assert report["state"] == "succeeded" and report["program"]["verdict"]["passed"] is False

@@ -144,4 +144,7 @@ class JobKind:
     report: ReportSection | None = None
     figures: Figures | None = None
     progress: ProgressCount | None = None
+    # In a program, what must hold before its operation begins: the drill's timing search
+    # starts from drives at rest, so it waits for the operation before to settle
+    settle_before: Callable[[Job, Machine, PlanBuilder, Kinematics], None] | None = None
 

@@ -54,6 +54,13 @@ def _hold_until_settled(builder: PlanBuilder, cycle: DrillCycle, kin: Kinematics
             builder.timelines[joint].add_hold(t_end, settle)
 
 
+def _settle_before(job: SimpleNamespace, machine, builder: PlanBuilder, kin: Kinematics) -> None:
+    """A program's drill operation starts where the operation before left the drives at rest
+    (its timing search assumes it): hold until they have settled there. Else X/Y still
+    settling from a rapid moves below R while the cycle climbs to it (hole-circle.ngc)."""
+    _hold_until_settled(builder, drill_cycle(job, machine, kin, (builder.position("x"), builder.position("y"))), kin)
+
+
 KIND = JobKind(
     name="drill",
     plan=plan_drill,
@@ -65,4 +72,5 @@ KIND = JobKind(
                          baselines_at=(f"{__name__}.report:other_cycles",)),
     figures=Figures(f"{__name__}.figures", aircut_summary="first_hole_aircut"),
     progress=ProgressCount("S1", "hole", total=lambda job: len(job.drill.holes)),
+    settle_before=_settle_before,
 )

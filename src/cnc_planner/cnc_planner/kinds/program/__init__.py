@@ -43,19 +43,22 @@ def plan_program(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, k
     operations = operations_at(job, machine, start)
     holds = list(enumerate(getattr(operations, "holds", ())))
     for index, (line, op, _) in enumerate(operations):
-        for k, hold in holds:
-            if hold.before == index:
-                mark_hold(builder, hold, k)
         kind = registry[op.kind]
+        op_kin = Kinematics(machine, op.setup, op.tool)
         try:
             if kind.layouts is not None and machine.layout not in kind.layouts:
                 raise JobError("kind", f"a {machine.layout} machine cannot run '{op.kind}' operations")
             if op.spindle_rpm > machine.axes[SPINDLE].max_velocity:
                 raise JobError("spindle_rpm", f"exceeds the spindle's {to_rpm(machine.axes[SPINDLE].max_velocity):.0f} rpm")
+            if index > 0 and kind.settle_before is not None:  # (a hold there begins settled too)
+                kind.settle_before(op, machine, builder, op_kin)
+            for k, hold in holds:
+                if hold.before == index:
+                    mark_hold(builder, hold, k)
             if index > 0 and op.surface_speed is None:  # (at a surface speed the operation sets it)
                 builder.spindle_after(op.spindle_rpm)  # where the previous operation ended
             builder.event(builder.end_time(), OPERATION, index=index, kind=op.kind, line=line)
-            kind.plan(op, machine, builder, Kinematics(machine, op.setup, op.tool))
+            kind.plan(op, machine, builder, op_kin)
         except JobError as err:
             raise JobError(f"line {line}", f"{op.kind}: {err}") from err
     for k, hold in holds:

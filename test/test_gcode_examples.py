@@ -8,8 +8,8 @@
   program coordinates, in order, without LinuxCNC installed; the planned command turns at
   each of those bottoms, pre-compensated for the drive's lag.
 - LinuxCNC's own machining examples (/usr/share/linuxcnc/ncfiles, GPL, never copied here):
-  each one plans or is refused for a machine reason, as bench/results/linuxcnc_examples.json
-  records it (those that never start the spindle with it started ahead, as an operator's MDI
+  each one plans, its report passing on the drive model's predicted feedback, or is refused
+  for a machine reason, as bench/results/linuxcnc_examples.json records it (those that never start the spindle with it started ahead, as an operator's MDI
   would: --spindle); where the files are installed the test runs them again and checks that
   they are the recorded files.
 """
@@ -137,6 +137,8 @@ def test_linuxcncs_example_programs_plan_or_are_refused_with_their_reason():
         assert r["outcome"] == "plans" or r["detail"].startswith("line "), (name, r["detail"])
         if "spindle_ahead_rpm" in r:  # it never starts the spindle: run as after the operator's S1000 M3
             assert "the spindle is off" in r["without_spindle"], (name, r["without_spindle"])
+        if r["outcome"] == "plans":  # and its report passes on the predicted run from the machine's home
+            assert r["judged"] == "passes", (name, r["judged"])
     assert sorted(name for name, r in machining.items() if "spindle_ahead_rpm" in r) == [
         "hole-circle.ngc", "lathe_g70_71_demo.ngc", "lathe_g7x_face_boring.ngc", "lathe_g7x_quadrants.ngc",
         "polar.ngc"]

@@ -6,7 +6,9 @@ lathe for the lathe programs) and plan, or are refused: for a machine reason (tr
 axis the machine lacks, a work offset (G55..) it keeps none of, a probe it lacks) or for a
 language reason (a word this front end refuses, with its reason). Probing, remap and I/O
 demos and the language demos that move no axis are left out, each with why. A program that
-never starts the spindle runs with it started ahead, as an operator would (``--spindle``). The files are
+never starts the spindle runs with it started ahead, as an operator would (``--spindle``).
+Each that plans is judged as cnc-run's report would judge it, on the drive model's predicted
+feedback from the machine's home (``judged``). The files are
 LinuxCNC's (GPL): they are read where they are installed, never copied; bench/results/linuxcnc_examples.json keeps each one's sha256,
 outcome and rs274's verdict, and test/test_gcode_examples.py checks the outcomes.
 
@@ -84,6 +86,23 @@ def ours(path: Path, machine: str, spindle_rpm: float | None = None) -> tuple[st
         return ("program" if any(k in text for k in PROGRAM_REASONS) else "language"), text
 
 
+def judged(path: Path, machine: str, spindle_rpm: float | None = None) -> str:
+    """'passes', or what failed, of the report's program verdict on the drive model's predicted
+    feedback to the plan made from the machine's home, where cnc-run's simulated machine
+    starts (a lathe program's tool would otherwise begin at X0 Z0, inside its part)."""
+    from cnc_msgs_py.gcode.document import job_document
+    from cnc_msgs_py.job import parse_job
+    from cnc_msgs_py.machine import load_machine
+
+    from cnc_planner.planning import plan_job
+    from cnc_planner.report import build_report, predicted_run
+    described = load_machine(machine)
+    doc = job_document(path, machine, spindle_rpm=spindle_rpm)
+    plan = plan_job(parse_job(doc), described, dict(zip(described.joint_names, described.home_position)))
+    verdict = build_report(predicted_run(doc, plan, described), described)["program"]["verdict"]
+    return "passes" if verdict["passed"] else verdict["says"]
+
+
 def rs274_verdict(path: Path, machine: str) -> str:
     """'reads' when rs274 -g interprets the whole file, else its first error line."""
     errors = [ln for ln in rs274(path, machine).splitlines()
@@ -106,6 +125,8 @@ def survey(folder: Path = NCFILES) -> dict:
             rows[name].update(without_spindle=detail, spindle_ahead_rpm=SPINDLE_AHEAD_RPM)
             outcome, detail = ours(path, machine, SPINDLE_AHEAD_RPM)
         rows[name].update(outcome=outcome, detail=detail)
+        if outcome == "plans":  # and what its report says of the predicted run
+            rows[name]["judged"] = judged(path, machine, rows[name].get("spindle_ahead_rpm"))
     return rows
 
 
@@ -175,9 +196,11 @@ def main() -> int:
     for name, r in rows.items():
         print(f"{name:55s} {r.get('outcome', 'left out'):9s} {r.get('detail', r.get('left_out'))}")
     ahead = sum("spindle_ahead_rpm" in r and r["outcome"] == "plans" for r in machining)
+    misses = [name for name, r in rows.items() if r.get("judged", "passes") != "passes"]
     print(f"{len(machining)} machining examples of {len(rows)}: {plans} plan ({ahead} of them with --spindle "
           f"{SPINDLE_AHEAD_RPM:g}); refused for a machine reason {count['machine']}, a program reason "
-          f"{count['program']}, a language reason {count['language']}")
+          f"{count['program']}, a language reason {count['language']}; judged on predicted feedback, "
+          f"{plans - len(misses)} pass, {len(misses)} fail ({', '.join(misses) or 'none'})")
     RESULTS.write_text(json.dumps(rows, indent=1, sort_keys=True) + "\n")
     return 0
 

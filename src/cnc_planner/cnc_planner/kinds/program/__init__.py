@@ -44,12 +44,12 @@ def plan_program(job: SimpleNamespace, machine: Machine, builder: PlanBuilder, k
     holds = list(enumerate(getattr(operations, "holds", ())))
     for index, (line, op, _) in enumerate(operations):
         kind = registry[op.kind]
-        op_kin = Kinematics(machine, op.setup, op.tool)
         try:
             if kind.layouts is not None and machine.layout not in kind.layouts:
                 raise JobError("kind", f"a {machine.layout} machine cannot run '{op.kind}' operations")
             if op.spindle_rpm > machine.axes[SPINDLE].max_velocity:
                 raise JobError("spindle_rpm", f"exceeds the spindle's {to_rpm(machine.axes[SPINDLE].max_velocity):.0f} rpm")
+            op_kin = Kinematics(machine, op.setup, op.tool)
             if index > 0 and kind.settle_before is not None:  # (a hold there begins settled too)
                 kind.settle_before(op, machine, builder, op_kin)
             for k, hold in holds:

@@ -14,7 +14,6 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from .lexer import Block, GcodeError, word_text
-from .modal import START_SPINDLE
 
 if TYPE_CHECKING:
     from .translate import Translator
@@ -41,8 +40,7 @@ def locked(tr: "Translator", b: Block, used: set[str]) -> None:
         raise GcodeError(b.line, name, "a move locked to the spindle is not vibrated: (CNC,VIBRATION OFF) before it")
     if s.surface is not None:
         raise GcodeError(b.line, name, "a move locked to the spindle turns at one rpm: G97 S.. before it, not G96")
-    if not (s.spindle_on and s.speed > 0.0):
-        raise GcodeError(b.line, name, f"the spindle is off: {START_SPINDLE}")
+    tr._need_spindle(b.line, name)
     if s.motion == CODES[1] and "I" in b.words:
         raise GcodeError(b.line, word_text("I", b.words["I"]), "a faster retract is not supported: the tap comes "
                                                               "out at the speed it went in")

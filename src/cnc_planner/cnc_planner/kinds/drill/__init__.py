@@ -47,18 +47,23 @@ def _in_order(job: SimpleNamespace, order: tuple[int, ...]) -> SimpleNamespace:
 
 def _hold_until_settled(builder: PlanBuilder, cycle: DrillCycle, kin: Kinematics) -> None:
     """Hold every axis at the segment's end until the simulated feedback is at rest."""
-    t_end = builder.end_time()
-    settle = settle_time(builder, kin, t_end, SETTLE_SHARE * cycle.xy_tolerance, cycle.servo_period)
-    for joint in builder.machine.joint_names:
-        if joint != SPINDLE and settle > 0.0:
-            builder.timelines[joint].add_hold(t_end, settle)
+    _hold_settled(builder, kin, cycle.xy_tolerance, cycle.servo_period)
 
 
 def _settle_before(job: SimpleNamespace, machine, builder: PlanBuilder, kin: Kinematics) -> None:
     """A program's drill operation starts where the operation before left the drives at rest
     (its timing search assumes it): hold until they have settled there. Else X/Y still
-    settling from a rapid moves below R while the cycle climbs to it (hole-circle.ngc)."""
-    _hold_until_settled(builder, drill_cycle(job, machine, kin, (builder.position("x"), builder.position("y"))), kin)
+    settling from a rapid moves below R while the cycle climbs to it (hole-circle.ngc).
+    No cycle of this job is built for it: every cycle has DrillCycle's tolerance and period."""
+    _hold_settled(builder, kin, DrillCycle.xy_tolerance, DrillCycle.servo_period)
+
+
+def _hold_settled(builder: PlanBuilder, kin: Kinematics, xy_tolerance: float, period: float) -> None:
+    t_end = builder.end_time()
+    settle = settle_time(builder, kin, t_end, SETTLE_SHARE * xy_tolerance, period)
+    for joint in builder.machine.joint_names:
+        if joint != SPINDLE and settle > 0.0:
+            builder.timelines[joint].add_hold(t_end, settle)
 
 
 KIND = JobKind(

@@ -141,6 +141,9 @@ def read_run(bag: Path) -> Run:
     if firsts := sorted((int(k[0]), name) for name, k in bulk.items() if len(k)):
         # the joint names of whichever of the two came first are the run's
         run.joints = tuple(feedback[0][0] if firsts[0][1] == "joint_states" else chunks[0][0])
+    if len(machines := list(dict.fromkeys(tuple(names) for names, _, _, _ in feedback))) > 1:
+        raise ValueError(f"cannot read recording {bag}: joint_states of two machines ("
+                         f"{' and '.join(', '.join(m) for m in machines[:2])}): another bridge published there")
     if feedback:
         run.feedback_t = np.concatenate([t for _, t, _, _ in feedback]) / NS
         run.feedback = np.concatenate([p for _, _, p, _ in feedback])

@@ -3,6 +3,7 @@ message by message, and messages that are not alike are read one by one."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from cnc_analysis.cdr_arrays import JOINT_STATE, JOINT_TRAJECTORY, joint_states, read_alike, trajectory_chunks
 from cnc_analysis.recording import RECORDED, TYPESTORE, BagWriter, read_run
@@ -99,6 +100,19 @@ def test_a_recording_reads_its_feedback_and_setpoints_in_its_joint_order(tmp_pat
     m = TYPESTORE.deserialize_cdr(chunk, TRAJECTORY)
     assert np.array_equal(run.command, [p.positions[::-1] for p in m.points])
     assert [(c.points, c.received_ns) for c in run.chunks] == [(20, 10**9 + 60)]
+
+
+def test_a_recording_with_two_machines_feedback_is_refused_by_name(tmp_path):
+    """A second bridge in the namespace (another run's lathe beside our mill) is named,
+    not concatenated into one feedback of mismatched widths."""
+    writer = BagWriter(tmp_path / "bag", {"/cnc/joint_states": STATE, "/clock": RECORDED["/clock"]})
+    for i in range(4):
+        names = ["x", "y", "z", "spindle"] if i % 2 else ["x", "z", "spindle"]
+        writer.write("/cnc/joint_states", 10**9 + i, _state(10**9 + i, names))
+    writer.close()
+    with pytest.raises(ValueError, match=r"joint_states of two machines \(x, z, spindle and x, y, z, spindle\): "
+                                         r"another bridge published there$"):
+        read_run(tmp_path / "bag")
 
 
 def _write(path, plugin) -> list[tuple[str, int, bytes]]:

@@ -78,12 +78,15 @@ def run_main(argv: list[str] | None = None) -> int:
         write_report_page(report, [], out / "report.html", job=doc if isinstance(doc, dict) else None)
         return _fail("cnc-run", f"rejected: {reason}")
     from cnc_planner.baselines import plan_beside
-    from cnc_planner.nodes import Nodes
+    from cnc_planner.nodes import Nodes, RunError
 
     # The nodes start first and come up while this process loads rclpy and the report's code;
     # the report's baselines are planned meanwhile, in a child process (forked before rclpy's
     # threads start) that the report collects.
-    nodes = Nodes(machine.name, namespace=args.namespace, bridge_params={"plant": plant} if plant else None)
+    try:
+        nodes = Nodes(machine.name, namespace=args.namespace, bridge_params={"plant": plant} if plant else None)
+    except RunError as err:
+        return _fail("cnc-run", str(err), 3)
     try:
         beside = plan_beside(doc, machine)
     except JobError:
@@ -94,7 +97,7 @@ def run_main(argv: list[str] | None = None) -> int:
         from cnc_planner.plots import write_plots
         from cnc_planner.report import build_report
         from cnc_planner.report_page import write_report_page
-        from cnc_planner.runner import RunError, run_job
+        from cnc_planner.runner import run_job
         from cnc_analysis.recording import read_run
 
         print(f"cnc-run: {args.job} on '{machine.name}' -> {out}", flush=True)

@@ -170,13 +170,19 @@ class Executive:
             job.stream.stop_from(max(job.stream.served_until_ns + self.settings.period_ns, job.stream.start_ns),
                                  self.machine)
 
-    def feedback(self, positions: dict[str, float], velocities: dict[str, float] | None = None) -> None:
+    def feedback(self, positions: dict[str, float], velocities: dict[str, float] | None = None) -> str:
         """Joint states from the bridge. Plans start from the last commanded position;
         only when that is unknown (start-up, or the bridge stopped on its own) do they
-        start from the feedback, once the axes stand still (velocities, if given)."""
+        start from the feedback, once the axes stand still (velocities, if given).
+
+        Returns why the message was ignored ("" if taken): one that lacks a joint of this
+        machine is another machine's (a second bridge in the namespace), never where ours stand."""
+        if missing := [j for j in self.machine.joint_names if j not in positions]:
+            return f"joint_states without joint '{missing[0]}' ignored (another machine's bridge?)"
         standing = velocities is None or all(abs(v) < REST_SPEED for v in velocities.values())
         if self.position is None and self.active is None and standing:
-            self.position = positions
+            self.position = {j: positions[j] for j in self.machine.joint_names}
+        return ""
 
     @property
     def heard_bridge(self) -> bool:

@@ -4,15 +4,22 @@ nodes before it imports rclpy or its report: the nodes come up while it loads.
 """
 from __future__ import annotations
 
+import fcntl
 import os
 import signal
 import subprocess
 import sys
+import tempfile
+from pathlib import Path
 
 from cnc_msgs_py import topics
 from cnc_msgs_py.discovery import dds_environment
 
 STOP_S = 10.0  # wall time a node gets to exit on SIGINT before it is killed
+
+
+class RunError(RuntimeError):
+    """The run could not be carried out (nodes did not start, another run's nodes, timeout)."""
 
 
 def local_dds_env(domain_id: int | None = None) -> dict[str, str]:
@@ -43,14 +50,73 @@ def node_command(module: str, namespace: str, params: dict[str, object]) -> list
     return args
 
 
+class Claim:
+    """This host's claim on a namespace in a DDS domain, held while one run's nodes live.
+
+    Two runs under one namespace in one domain would take each other's goals and feedback.
+    Seeing the other run's nodes in the DDS graph takes discovery, which on a busy host
+    came up to 1.6 s after the recorder was ready: a second cnc-run then sent its goal to
+    both planners. A lock file (flock, released by the kernel when its holder dies) refuses
+    a second run on this host at once, before it starts anything; runs on other hosts are
+    still found in the graph (``runner.Session``).
+    """
+
+    def __init__(self, env: dict[str, str], namespace: str) -> None:
+        domain = env.get("ROS_DOMAIN_ID", "0")
+        self.path = Path(tempfile.gettempdir()) / f"cnc-domain-{domain}{namespace.replace('/', '-')}.lock"
+        while True:
+            self.file = self.path.open("a+")
+            try:
+                fcntl.flock(self.file, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                self.file.seek(0)
+                holder = self.file.read().strip() or "unknown"
+                self.file.close()
+                raise RunError(f"another run (pid {holder}) already runs nodes at {namespace} in ROS_DOMAIN_ID "
+                               f"{domain} on this host: set ROS_DOMAIN_ID to a free domain") from None
+            try:
+                if os.fstat(self.file.fileno()).st_ino == os.stat(self.path).st_ino:
+                    break
+            except FileNotFoundError:
+                pass
+            self.file.close()  # locked a file its holder had just removed: take the path's new one
+        self.file.truncate(0)
+        self.file.write(f"{os.getpid()}\n")
+        self.file.flush()
+
+    def release(self) -> None:
+        """Give the namespace up (removing the file while still holding its lock)."""
+        if not self.file.closed:
+            self.path.unlink(missing_ok=True)
+            self.file.close()
+
+
+def free_domain(namespace: str) -> tuple[dict[str, str], Claim]:
+    """A domain of our own, as none was chosen: the pid's (1..100), or the next one free of
+    runs at ``namespace`` on this host (two runs whose pids agree mod 100 both go ahead)."""
+    first = os.getpid() % 100
+    for k in range(100):
+        env = local_dds_env(1 + (first + k) % 100)
+        try:
+            return env, Claim(env, namespace)
+        except RunError:
+            continue
+    raise RunError(f"every ROS_DOMAIN_ID from 1 to 100 has a run's nodes at {namespace} on this host")
+
+
 class Nodes:
     """A machine's bridge (simulation mode: the clock source) and planner (on its time)
-    under one namespace, each a process started at once."""
+    under one namespace, each a process started at once, once this host's claim on the
+    namespace is taken (else RunError, and nothing starts)."""
 
     def __init__(self, machine: str, *, namespace: str = topics.NAMESPACE, env: dict[str, str] | None = None,
                  bridge_params: dict[str, object] | None = None, simulation: bool = True) -> None:
         self.namespace = namespace
-        self.env = env or local_dds_env()
+        if env is None and not os.environ.get("ROS_DOMAIN_ID"):
+            self.env, self.claim = free_domain(namespace)
+        else:
+            self.env = env or local_dds_env()
+            self.claim = Claim(self.env, namespace)
         self.commands = {
             "bridge": node_command("cnc_servo_bridge.bridge_node", namespace,
                                    {"machine": machine, "simulation": simulation, **(bridge_params or {})}),
@@ -87,3 +153,5 @@ class Nodes:
                 proc.wait(timeout=STOP_S)
             except subprocess.TimeoutExpired:
                 proc.kill()
+                proc.wait()
+        self.claim.release()

@@ -203,8 +203,10 @@ class PlannerNode(Node):
     def on_feedback(self, msg: JointState) -> None:
         """The latest joint_states (taken by ``poll``); nothing starts until a bridge listens
         for setpoints, which would be lost."""
+        if ignored := self.executive.feedback(dict(zip(msg.name, msg.position)), dict(zip(msg.name, msg.velocity))):
+            self.get_logger().error(ignored, throttle_duration_sec=5.0)
+            return
         self.last_feedback_wall = self.wall.now()
-        self.executive.feedback(dict(zip(msg.name, msg.position)), dict(zip(msg.name, msg.velocity)))
         # Not max(): a restarted bridge starts its clock again, and its time is the one that counts.
         self.latest_feedback_ns = msg.header.stamp.sec * NS + msg.header.stamp.nanosec
         self.admit_prepared()

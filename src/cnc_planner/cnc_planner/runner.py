@@ -31,7 +31,7 @@ from cnc_msgs_py.status import FINAL_STATES
 from cnc_msgs_py.units import NS
 from cnc_analysis.recording import RECORDED, BagWriter
 
-from cnc_planner.nodes import Nodes, local_dds_env, node_command, topic_name  # noqa: F401 (the runner's API)
+from cnc_planner.nodes import Nodes, RunError, local_dds_env, node_command, topic_name  # noqa: F401 (the runner's API)
 from cnc_planner.pauses import Pauses
 
 QOS = {
@@ -45,10 +45,6 @@ PROCESS_CHECK_S = 0.1  # wall time between checks of the deadline and the node p
 SPIN_S = 0.05  # wall time a spin waits for a reason to return (the recorder's wake)
 ACK_EVERY_NS = 25_000_000  # tell the bridge what has been written every 25 ms of its time:
 # a quarter of its window (RECORDER_WINDOW_NS), each acknowledgement a DDS write (~0.1 ms)
-
-
-class RunError(RuntimeError):
-    """The run could not be carried out (nodes did not start, timeout)."""
 
 
 def message_class(msgtype: str) -> type:
@@ -162,10 +158,12 @@ class Session:
     def __enter__(self) -> "Session":
         try:
             self.spin_until(self.ready, 30.0, "the planner and bridge did not come up")
-            # Two runs in one domain and namespace would take each other's goals. The other
-            # run's heartbeat may come after ours (our nodes were up before this recorder);
-            # its nodes are in the graph once ours are, under our names: then wait for its
-            # heartbeat (a node that has just died stays in the graph a while, silent).
+            # Two runs in one domain and namespace would take each other's goals. On this host
+            # the nodes' Claim has refused a second run; nodes of another host (or started by
+            # other means) are found here, as far as discovery has got: up to 1.6 s after
+            # ready on a busy host, so this is a guard, not a proof. Once the other nodes are
+            # in the graph under our names, wait for their heartbeat (a node that has just
+            # died stays in the graph a while, silent).
             if self._doubled():
                 deadline = time.monotonic() + HEARTBEAT_WAIT_S
                 self.spin_until(lambda: bool(self.recorder.heard.pids - self.own_pids())

@@ -470,6 +470,18 @@ def test_a_job_submitted_before_any_feedback_starts_once_feedback_arrives():
     assert sim.run_job("waits", limit_s=5.0).state == "succeeded"
 
 
+def test_another_machines_joint_states_are_ignored_and_never_where_the_axes_stand():
+    """A lathe's bridge in the same namespace (a second run) publishes x, z and spindle: a
+    mill's planner once took that for its own feedback, and died on the missing y."""
+    executive = Executive(MILL)
+    reason = executive.feedback({"x": 0.1, "z": 0.2, SPINDLE: 0.0}, {"x": 0.0, "z": 0.0, SPINDLE: 0.0})
+    assert reason == "joint_states without joint 'y' ignored (another machine's bridge?)"
+    executive.bridge_report("")
+    assert not executive.heard_bridge and executive.position is None
+    assert executive.feedback({**ORIGIN, "x": 0.003}) == ""
+    assert executive.position == {**ORIGIN, "x": 0.003}
+
+
 def test_abort_with_stop_runs_a_stop_then_reports_aborted():
     sim = Sim()
     sim.submit(move_job("stopme", [{"linear": {"x": 30}, "feed": 1200}]))

@@ -1,0 +1,60 @@
+"""This host's claim on a namespace in a DDS domain: one run's nodes at a time, refused at
+once and by name (no waiting on DDS discovery), free again when the holder ends or dies."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+from cnc_planner.nodes import Claim, RunError, free_domain
+
+DOMAIN = {"ROS_DOMAIN_ID": "231"}
+NS = f"/claim{os.getpid()}/cnc"  # this process's own: suites side by side never meet here
+
+
+def test_a_second_claim_on_the_namespace_is_refused_with_the_holder():
+    first = Claim(DOMAIN, NS)
+    try:
+        with pytest.raises(RunError) as err:
+            Claim(DOMAIN, NS)
+        assert str(err.value) == (f"another run (pid {os.getpid()}) already runs nodes at {NS} in ROS_DOMAIN_ID 231 "
+                                  "on this host: set ROS_DOMAIN_ID to a free domain")
+        Claim(DOMAIN, f"{NS}2").release()  # another machine of the cell
+        Claim({"ROS_DOMAIN_ID": "232"}, NS).release()  # another domain
+    finally:
+        first.release()
+    again = Claim(DOMAIN, NS)  # free once released
+    again.release()
+    assert not again.path.exists()  # no lock file left behind
+
+
+def test_a_killed_holder_leaves_the_namespace_free():
+    holder = subprocess.Popen([sys.executable, "-c", "import sys; from cnc_planner.nodes import Claim; "
+                               f"c = Claim({DOMAIN!r}, {NS!r}); print('held', flush=True); sys.stdin.read()"],
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline() == "held\n"
+        with pytest.raises(RunError, match=f"pid {holder.pid}"):
+            Claim(DOMAIN, NS)
+    finally:
+        holder.kill()
+        holder.wait()
+    Claim(DOMAIN, NS).release()
+
+
+def test_a_run_without_a_chosen_domain_takes_the_next_free_one(monkeypatch):
+    """Two cnc-runs whose pids agree mod 100 would share a domain: the second takes the next."""
+    monkeypatch.delenv("ROS_DOMAIN_ID", raising=False)
+    own = 1 + os.getpid() % 100
+    taken = Claim({"ROS_DOMAIN_ID": str(own)}, NS)
+    try:
+        env, claim = free_domain(NS)
+        assert env["ROS_DOMAIN_ID"] == str(1 + own % 100)
+        claim.release()
+    finally:
+        taken.release()
+    env, claim = free_domain(NS)
+    assert env["ROS_DOMAIN_ID"] == str(own)
+    claim.release()

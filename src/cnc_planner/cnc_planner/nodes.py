@@ -58,7 +58,8 @@ class Claim:
     came up to 1.6 s after the recorder was ready: a second cnc-run then sent its goal to
     both planners. A lock file (flock, released by the kernel when its holder dies) refuses
     a second run on this host at once, before it starts anything; runs on other hosts are
-    still found in the graph (``runner.Session``).
+    still found in the graph (``runner.Session``). The nodes inherit the lock's descriptor
+    (``fds``): nodes left running by a run that was killed keep their namespace claimed.
     """
 
     def __init__(self, env: dict[str, str], namespace: str) -> None:
@@ -83,6 +84,11 @@ class Claim:
         self.file.truncate(0)
         self.file.write(f"{os.getpid()}\n")
         self.file.flush()
+
+    @property
+    def fds(self) -> tuple[int, ...]:
+        """The descriptor a node process inherits, sharing the lock until it exits too."""
+        return (self.file.fileno(),)
 
     def release(self) -> None:
         """Give the namespace up (removing the file while still holding its lock)."""
@@ -123,7 +129,7 @@ class Nodes:
             "planner": node_command("cnc_planner.planner_node", namespace,
                                     {"machine": machine, "use_sim_time": simulation}),
         }
-        self.procs = {name: subprocess.Popen(cmd, env=self.env) for name, cmd in self.commands.items()}
+        self.procs = {name: self._popen(cmd) for name, cmd in self.commands.items()}
 
     def pids(self) -> set[int]:
         return {proc.pid for proc in self.procs.values()}
@@ -141,7 +147,10 @@ class Nodes:
 
     def start(self, name: str) -> None:
         """Start a killed node again, with the same parameters."""
-        self.procs[name] = subprocess.Popen(self.commands[name], env=self.env)
+        self.procs[name] = self._popen(self.commands[name])
+
+    def _popen(self, command: list[str]) -> subprocess.Popen:
+        return subprocess.Popen(command, env=self.env, pass_fds=self.claim.fds)
 
     def stop(self) -> None:
         """SIGINT to every node (a clean shutdown), SIGKILL to any still running after STOP_S."""

@@ -58,3 +58,19 @@ def test_a_run_without_a_chosen_domain_takes_the_next_free_one(monkeypatch):
     env, claim = free_domain(NS)
     assert env["ROS_DOMAIN_ID"] == str(own)
     claim.release()
+
+
+def test_nodes_left_by_a_killed_run_keep_the_namespace_claimed():
+    """A run killed outright (SIGKILL) leaves its nodes running: they share its lock, so a
+    next run is refused while they live, and goes ahead once they are gone."""
+    claim = Claim(DOMAIN, NS)
+    node = subprocess.Popen([sys.executable, "-c", "import sys; sys.stdin.read()"], stdin=subprocess.PIPE,
+                            pass_fds=claim.fds)
+    try:
+        claim.file.close()  # the run is gone, without releasing
+        with pytest.raises(RunError, match=f"pid {os.getpid()}"):
+            Claim(DOMAIN, NS)
+    finally:
+        node.kill()
+        node.wait()
+    Claim(DOMAIN, NS).release()

@@ -155,14 +155,17 @@ def test_missing_job_file_is_one_line(tmp_path):
     assert load_report(tmp_path / "run")["state"] == "rejected"
 
 
-def test_cnc_plan_offline_writes_setpoints(tmp_path):
+def test_cnc_plan_offline_writes_setpoints_planned_as_cnc_run_plans_them(move_run, tmp_path):
+    """From the machine's home (mill3: Z 50 mm), where cnc-run's drives start: the same plan."""
     result = cnc("cnc-plan", JOB, "--out", tmp_path)
     assert result.returncode == 0, result.stderr
     data = np.load(tmp_path / "setpoints.npz")
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["joints"] == ["x", "y", "z", "spindle"]
     assert len(data["t"]) == summary["setpoints"]
+    assert (data["x"][0], data["y"][0], data["z"][0]) == (0.0, 0.0, 0.05)
     assert data["x"][-1] == pytest.approx(0.0) and data["z"][-1] == pytest.approx(0.010)
+    assert summary["duration_s"] == pytest.approx(load_report(move_run)["planned_time_s"], abs=1e-3)
 
 
 def test_cnc_plan_stores_setpoints_unless_asked_to_compress(tmp_path):

@@ -189,7 +189,8 @@ def cell_main(argv: list[str] | None = None) -> int:
 
 
 def plan_main(argv: list[str] | None = None) -> int:
-    """cnc-plan JOB --out DIR: plan offline (no ROS) and write setpoints.npz + summary.json."""
+    """cnc-plan JOB --out DIR: plan offline (no ROS) from the machine's home, where cnc-run's
+    simulated drives start, and write setpoints.npz + summary.json."""
     parser = tool_parser("cnc-plan", "cnc_planner", description=plan_main.__doc__)
     parser.add_argument("job", help="job document (YAML or JSON) or G-code program (.ngc)")
     add_program_options(parser)
@@ -214,7 +215,7 @@ def plan_main(argv: list[str] | None = None) -> int:
     try:
         job = parse_job(job_from_args(args))
         machine = load_machine(job.machine)
-        plan = plan_job(job, machine)
+        plan = plan_job(job, machine, dict(zip(machine.joint_names, machine.home_position)))  # as cnc-run starts
     except (JobError, MachineError) as err:
         return _fail("cnc-plan", str(err))
     t = np.arange(int(np.ceil(plan.duration / args.period)) + 1) * args.period

@@ -68,8 +68,9 @@ def machine_of(name: str) -> str:
 
 
 def ours(path: Path, machine: str, spindle_rpm: float | None = None) -> tuple[str, str]:
-    """('plans', seconds) or ('machine' | 'program' | 'language', the refusal) for one file;
-    ``spindle_rpm``: the spindle turning as the program begins (cnc-run --spindle)."""
+    """('plans', seconds from the machine's home, as cnc-plan) or ('machine' | 'program' |
+    'language', the refusal) for one file; ``spindle_rpm``: the spindle turning as the program
+    begins (cnc-run --spindle)."""
     from cnc_msgs_py.gcode.document import job_document
     from cnc_msgs_py.job import parse_job
     from cnc_msgs_py.machine import load_machine
@@ -78,7 +79,8 @@ def ours(path: Path, machine: str, spindle_rpm: float | None = None) -> tuple[st
     from cnc_planner.planning import plan_job
     try:
         job = parse_job(job_document(path, machine, spindle_rpm=spindle_rpm))
-        return "plans", f"{plan_job(job, load_machine(machine)).duration:.1f} s"
+        described = load_machine(machine)
+        return "plans", f"{plan_job(job, described, described.home_joints).duration:.1f} s"
     except JobError as err:
         text = str(err)
         if any(k in text for k in MACHINE_REASONS):
@@ -98,7 +100,7 @@ def judged(path: Path, machine: str, spindle_rpm: float | None = None) -> str:
     from cnc_planner.report import build_report, predicted_run
     described = load_machine(machine)
     doc = job_document(path, machine, spindle_rpm=spindle_rpm)
-    plan = plan_job(parse_job(doc), described, dict(zip(described.joint_names, described.home_position)))
+    plan = plan_job(parse_job(doc), described, described.home_joints)
     verdict = build_report(predicted_run(doc, plan, described), described)["program"]["verdict"]
     return "passes" if verdict["passed"] else verdict["says"]
 

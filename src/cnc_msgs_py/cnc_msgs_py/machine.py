@@ -139,6 +139,12 @@ class Machine:
         return self.home or tuple(0.0 for _ in self.axes)
 
     @property
+    def home_joints(self) -> dict[str, float]:
+        """The power-up position by joint (SI): where the simulated drives start, and so where
+        an offline plan starts (cnc-plan), as cnc-run's would."""
+        return dict(zip(self.joint_names, self.home_position))
+
+    @property
     def joint_names(self) -> tuple[str, ...]:
         return tuple(self.axes)
 

@@ -215,7 +215,7 @@ def plan_main(argv: list[str] | None = None) -> int:
     try:
         job = parse_job(job_from_args(args))
         machine = load_machine(job.machine)
-        plan = plan_job(job, machine, dict(zip(machine.joint_names, machine.home_position)))  # as cnc-run starts
+        plan = plan_job(job, machine, machine.home_joints)  # as cnc-run starts
     except (JobError, MachineError) as err:
         return _fail("cnc-plan", str(err))
     t = np.arange(int(np.ceil(plan.duration / args.period)) + 1) * args.period

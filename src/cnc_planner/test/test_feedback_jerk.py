@@ -26,7 +26,7 @@ PATH_CURVATURE = 0.02
 def test_feedback_jerk_stays_within_the_limit(name):
     job = parse_job(load_job_file(ROOT / "config" / "jobs" / f"{name}.yaml"))
     machine = load_machine(job.machine)
-    plan = plan_job(job, machine, dict(zip(machine.joint_names, machine.home_position)))
+    plan = plan_job(job, machine, machine.home_joints)
     _, feedback = simulated_feedback(plan, machine, PERIOD)
     for i, joint in enumerate(plan.joints):
         if joint == SPINDLE:

@@ -29,7 +29,7 @@ def planned(name: str):
     doc = load_job_file(ROOT / "config" / "jobs" / f"{name}.yaml")
     job = parse_job(doc)
     machine = load_machine(job.machine)
-    return doc, machine, plan_job(job, machine, dict(zip(machine.joint_names, machine.home_position)))
+    return doc, machine, plan_job(job, machine, machine.home_joints)
 
 
 def judged(name: str, factors: dict) -> dict:

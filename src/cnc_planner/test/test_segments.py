@@ -27,7 +27,7 @@ from cnc_servo_bridge.drive import DriveModel
 
 JOBS = Path(__file__).resolve().parents[3] / "config" / "jobs"
 MILL = load_machine("mill3")
-HOME = dict(zip(MILL.joint_names, MILL.home_position))
+HOME = MILL.home_joints
 HOLES = SEGMENT_HOLES * 2 + 20  # three segments, the last one short
 PERIOD = 1e-3
 

@@ -25,7 +25,7 @@ def long_rapid() -> object:
 
 
 def plan_on(machine):
-    return plan_job(long_rapid(), machine, dict(zip(machine.joint_names, machine.home_position)))
+    return plan_job(long_rapid(), machine, machine.home_joints)
 
 
 def worst_error(plan, machine, drives) -> float:

@@ -35,7 +35,7 @@ def _predicted(name: str) -> tuple[Machine, Run]:
     doc = load_job_file(JOBS / f"{name}.yaml")
     job = parse_job(doc)
     machine = load_machine(job.machine)
-    plan = plan_job(job, machine, dict(zip(machine.joint_names, machine.home_position)))
+    plan = plan_job(job, machine, machine.home_joints)
     return machine, predicted_run(doc, plan, machine)
 
 

@@ -35,7 +35,7 @@ def test_auto_on_lathe_soft_breaks_every_chip_within_its_window():
     and the events record the choice and the chip it predicted."""
     machine = load_machine("lathe_soft")
     doc = {**load_job_file(JOBS / "lathe_feed_vibration.yaml"), "machine": "lathe_soft", "vibration": "auto"}
-    plan = plan_job(parse_job(doc), machine, dict(zip(machine.joint_names, machine.home_position)))
+    plan = plan_job(parse_job(doc), machine, machine.home_joints)
     [choice] = chosen(plan)
     assert choice["auto"] and choice["window_revs"] >= 1
     aircut = build_report(predicted_run(doc, plan, machine), machine)["aircut"]["feedback"]
@@ -52,7 +52,7 @@ def test_explicit_d_1_5_on_lathe_soft_breaks_every_chip_within_one_revolution():
     once, carrying nothing: z holds with its settling (the same z command as before)."""
     machine = load_machine("lathe_soft")
     doc = {**load_job_file(JOBS / "lathe_feed_vibration.yaml"), "machine": "lathe_soft"}
-    plan = plan_job(parse_job(doc), machine, dict(zip(machine.joint_names, machine.home_position)))
+    plan = plan_job(parse_job(doc), machine, machine.home_joints)
     aircut = build_report(predicted_run(doc, plan, machine), machine)["aircut"]["feedback"]
     assert aircut["revolutions"] >= 100 and aircut["revolutions_with_aircut"] == aircut["revolutions"]
     assert aircut["max_chip_revs"] <= 1.0
@@ -67,7 +67,7 @@ def test_explicit_d_1_5_on_lathe_soft_breaks_every_chip_within_one_revolution():
 def test_auto_keeps_d_1_5_where_the_axis_follows_it_and_explicit_parameters_stay():
     machine = load_machine("lathe")
     doc = load_job_file(JOBS / "lathe_feed_vibration.yaml")
-    start = dict(zip(machine.joint_names, machine.home_position))
+    start = machine.home_joints
     [auto] = chosen(plan_job(parse_job({**doc, "vibration": "auto"}), machine, start))
     assert (auto["D"], auto["Q"], auto["window_revs"]) == (1.5, 1.2, 1.0)
     [given] = chosen(plan_job(parse_job(doc), machine, start))

@@ -30,6 +30,7 @@ CASES = [
     ("lathe_g76_taper.ngc", "G76 tapered ends", ("x", "z", "spindle"), "thread"),
     ("lathe_g33.ngc", "G33 passes", ("x", "z", "spindle"), "spindle_sync"),
     ("mill_g33_1.ngc", "G33.1 rigid tap", ("z", "spindle"), "spindle_sync"),
+    ("drill_after_rapids.ngc", "G81 after rapids", ("x", "y", "z"), "drill"),
 ]
 
 
@@ -45,7 +46,7 @@ def judged(name: str, joints: tuple[str, ...], key: str) -> tuple[int, list[str]
     path = ROOT / "test" / "gcode_oracle" / name
     doc = job_document(path)
     machine = load_machine(doc["machine"])
-    plan = plan_job(parse_job(doc), machine)
+    plan = plan_job(parse_job(doc), machine, machine.home_joints)  # from where cnc-run starts
     verdicts = []
     for plant in corners(machine, joints):
         report = build_report(predicted_run(doc, plan, machine, plant=plant), machine)

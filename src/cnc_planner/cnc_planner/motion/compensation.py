@@ -36,6 +36,13 @@ def tolerance_drives(machine: Machine, joint: str) -> list[Drive]:
     return [described] + [d for d in tolerance_corners(described) if d != described]
 
 
+def corner_plants(machine: Machine, joints: list[str]) -> list[dict[str, Drive]]:
+    """The described drives, then the k-th corner of every joint's tolerance together (a
+    joint with fewer corners repeats them; one whose tolerance is closed stays as described)."""
+    each = [tolerance_drives(machine, j) for j in joints]
+    return [{j: c[k % len(c)] for j, c in zip(joints, each)} for k in range(max(len(c) for c in each))]
+
+
 def compensation_band(drive: DriveModel, max_acceleration: float) -> tuple[float, float]:
     """The band (shares of the servo rate) a correction may use on this drive's encoder:
     INVERSE_BAND, narrowed on a coarse encoder so that chasing its counts (a count at

@@ -37,14 +37,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cnc_msgs_py.machine import SPINDLE, Drive, Machine
+from cnc_msgs_py.machine import SPINDLE, Machine
 from cnc_msgs_py.schema import JobError
 from cnc_msgs_py.units import to_mm
 from cnc_servo_bridge.drive import DriveModel
 
 from cnc_planner.motion import SERVO_PERIOD
 from cnc_planner.motion.builder import PlanBuilder
-from cnc_planner.motion.compensation import tolerance_drives
+from cnc_planner.motion.compensation import corner_plants
 
 TWO_PI = 2.0 * math.pi
 # m: the thread's flank tolerance the lock must hold, as the judge (cnc_analysis.spindle_sync,
@@ -64,12 +64,6 @@ class Margin:
 
     ease: float
     hold: float
-
-
-def corner_plants(machine: Machine, joints: list[str]) -> list[dict[str, Drive]]:
-    """The described drives, then the k-th corner of every joint's tolerance together."""
-    each = [tolerance_drives(machine, j) for j in joints]
-    return [{j: c[k % len(c)] for j, c in zip(joints, each)} for k in range(max(len(c) for c in each))]
 
 
 def _predict(machine: Machine, builder: PlanBuilder, end: float, joints: list[str],

@@ -73,6 +73,12 @@ def test_a_surface_speed_in_feet_per_minute_is_converted_once():
     (HEAD + "G96 D2000 M3\nM2", "line 2: G96: needs S, the surface speed"),
     (HEAD + "M3 S500\nG0 X22 Z7\nF0.15\nG96 G71 Q100 X20 Z5 D0.2 I1.5 R0.5\nM2\no100 sub\nG1 X10 Z5\no100 endsub",
      "line 5: G96: give G96 D.. S.. on a line of its own: D is also G71's word here"),
+    # G95 with the spindle standing, at a surface speed and at an rpm (S0): one message
+    (HEAD + "G96 D2000 S150\nG0 X21 Z0\nG1 X10 F0.1\nM2", "line 4: G1: G95 feeds per revolution need the spindle "
+                                                           "on: give S and M3 before it"),
+    (HEAD + "S0 M3\nG0 X21 Z0\nG1 X10 F0.1\nM2", "line 4: G1: G95 feeds per revolution need the spindle on: "
+                                                 "give S and M3 before it"),
+    (HEAD + "G96 D2000 S150 M3\nG0 X21 Z0\nG1 X10\nM2", "line 4: G1: no feed given (F)"),
 ])
 def test_what_cannot_turn_at_a_surface_speed_is_refused_at_its_word(text, reason):
     assert _refused(text).startswith(reason)

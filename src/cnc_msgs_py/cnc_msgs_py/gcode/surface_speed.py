@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 
 from ..machine import MachineError, load_machine
 from .lexer import Block, GcodeError, word_text
-from .modal import DRILL_CYCLES, MOTION, ROUGHING_CYCLES, START_SPINDLE, Modal
+from .modal import DRILL_CYCLES, MOTION, ROUGHING_CYCLES, Modal
 
 if TYPE_CHECKING:
     from .translate import Translator
@@ -105,11 +105,7 @@ def feed(tr: "Translator", line: int, word: str) -> dict:
     s = tr.state
     if s.surface is None or not s.per_rev:
         return {"feed": tr._feed_mm_min(line, word)}
-    if s.feed is None:
-        raise GcodeError(line, word, "no feed given (F)")
-    if not s.spindle_on:
-        raise GcodeError(line, word, f"G95 feeds per revolution need the spindle on: {START_SPINDLE}")
-    return {"feed_per_rev": s.length(s.feed)}
+    return {"feed_per_rev": tr._given_feed(line, word, s.spindle_on)}  # S is a surface speed here
 
 
 def spindle(s: Modal) -> dict:

@@ -414,15 +414,20 @@ class Translator:
                 pos[axis] = v
         return dict(pos)
 
-    def _feed_mm_min(self, line: int, word: str) -> float:
+    def _given_feed(self, line: int, word: str, turning: bool) -> float:
+        """The F word in mm (per minute, or per revolution under G95, which needs the spindle
+        ``turning``), refused at its line where there is none or the spindle stands."""
         s = self.state
         if s.feed is None:
             raise GcodeError(line, word, "no feed given (F)")
-        if s.per_rev:
-            if not (s.spindle_on and s.speed > 0.0):
-                raise GcodeError(line, word, f"G95 feeds per revolution need the spindle on: {START_SPINDLE}")
-            return s.length(s.feed) * s.speed
+        if s.per_rev and not turning:
+            raise GcodeError(line, word, f"G95 feeds per revolution need the spindle on: {START_SPINDLE}")
         return s.length(s.feed)
+
+    def _feed_mm_min(self, line: int, word: str) -> float:
+        s = self.state
+        feed = self._given_feed(line, word, s.spindle_on and s.speed > 0.0)
+        return feed * s.speed if s.per_rev else feed
 
     def _arc(self, b: Block, used: set[str]) -> None:
         s = self.state

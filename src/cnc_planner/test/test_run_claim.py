@@ -2,9 +2,11 @@
 once and by name (no waiting on DDS discovery), free again when the holder ends or dies."""
 from __future__ import annotations
 
+import contextlib
 import os
 import subprocess
 import sys
+from collections.abc import Iterator
 
 import pytest
 
@@ -30,17 +32,24 @@ def test_a_second_claim_on_the_namespace_is_refused_with_the_holder():
     assert not again.path.exists()  # no lock file left behind
 
 
-def test_a_killed_holder_leaves_the_namespace_free():
-    holder = subprocess.Popen([sys.executable, "-c", "import sys; from cnc_planner.nodes import Claim; "
-                               f"c = Claim({DOMAIN!r}, {NS!r}); print('held', flush=True); sys.stdin.read()"],
-                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+@contextlib.contextmanager
+def _process(code: str, **popen) -> Iterator[subprocess.Popen]:
+    """A Python process running ``code``, killed outright (SIGKILL) when the block ends."""
+    proc = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, **popen)
     try:
+        yield proc
+    finally:
+        proc.kill()
+        proc.wait()
+
+
+def test_a_killed_holder_leaves_the_namespace_free():
+    with _process("import sys; from cnc_planner.nodes import Claim; "
+                  f"c = Claim({DOMAIN!r}, {NS!r}); print('held', flush=True); sys.stdin.read()",
+                  stdout=subprocess.PIPE, text=True) as holder:
         assert holder.stdout.readline() == "held\n"
         with pytest.raises(RunError, match=f"pid {holder.pid}"):
             Claim(DOMAIN, NS)
-    finally:
-        holder.kill()
-        holder.wait()
     Claim(DOMAIN, NS).release()
 
 
@@ -64,13 +73,8 @@ def test_nodes_left_by_a_killed_run_keep_the_namespace_claimed():
     """A run killed outright (SIGKILL) leaves its nodes running: they share its lock, so a
     next run is refused while they live, and goes ahead once they are gone."""
     claim = Claim(DOMAIN, NS)
-    node = subprocess.Popen([sys.executable, "-c", "import sys; sys.stdin.read()"], stdin=subprocess.PIPE,
-                            pass_fds=claim.fds)
-    try:
+    with _process("import sys; sys.stdin.read()", pass_fds=claim.fds):
         claim.file.close()  # the run is gone, without releasing
         with pytest.raises(RunError, match=f"pid {os.getpid()}"):
             Claim(DOMAIN, NS)
-    finally:
-        node.kill()
-        node.wait()
     Claim(DOMAIN, NS).release()

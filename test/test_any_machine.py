@@ -37,7 +37,7 @@ def refused_or_verified(kind: str, machine: Machine, drill: dict | None = None,
         doc["drill"] = {**doc["drill"], **drill}
     job = parse_job(doc)
     try:
-        plan = plan_job(job, machine, dict(zip(machine.joint_names, machine.home_position)))
+        plan = plan_job(job, machine, machine.home_joints)
     except JobError as err:
         assert err.field and err.reason and INTERNAL not in err.reason, str(err)
         assert "\n" not in str(err)

@@ -124,7 +124,7 @@ def planned_pair_times(doc: dict) -> np.ndarray:
     """Per pair of holes, from the plan: Z leaving hole i's bottom to Z at the next hole's
     R at feed (the retract, the air arc over the X/Y move and the way down)."""
     machine = load_machine(doc["machine"])
-    plan = plan_job(parse_job(doc), machine, dict(zip(machine.joint_names, machine.home_position)))
+    plan = plan_job(parse_job(doc), machine, machine.home_joints)
     at = {(e.name, e.data.get("hole")): e.time for e in plan.events}
     return np.array([at[("R_down", i + 1)] - at[("S3", i)] for i in range(len(doc["drill"]["holes"]) - 1)])
 

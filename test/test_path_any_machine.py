@@ -53,7 +53,7 @@ def test_5_axis_paths_are_refused_up_front_or_within_tolerance_on_predicted_feed
         doc = {**doc, "machine": machine.name, "path": {**doc["path"], "feed": feed}}
         job = parse_job(doc)
         try:
-            plan = plan_job(job, machine, dict(zip(machine.joint_names, machine.home_position)))
+            plan = plan_job(job, machine, machine.home_joints)
         except JobError as err:
             assert err.field and err.reason and INTERNAL not in err.reason, str(err)
             outcomes.append(f"refused: {err}")

@@ -58,7 +58,7 @@ class Homes:
             m = load_machine(self.machine)
         except MachineError:
             return {}
-        return {a: 1e3 * v for a, v in zip(m.joint_names, m.home_position) if a in AXES}
+        return {a: 1e3 * v for a, v in m.home_joints.items() if a in AXES}
 
 
 def _axes(tr: "Translator") -> list[str]:

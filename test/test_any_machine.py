@@ -5,10 +5,7 @@ properties we verify on feedback (the same report code that judges recordings).
 Machine descriptions are drawn over the ranges users write (issue 16): max_jerk 50 to
 1e6 m/s^3, kp 10-150 /s, velocity and acceleration feed-forward 0-1, velocity lag
 0.2-10 ms, encoder resolution 1e-8 to 1e-5 m, following error limit 1-20 mm; the axes'
-travel, velocity and acceleration as in the shipped mill3 and lathe. The path's drawn
-machines are trusted as described (tolerance closed), as in test_path_any_machine: its
-corner margins are test_path_tolerance_corners' to show, and planning them on twelve drawn
-machines took 35 s of the suite (1 s without).
+travel, velocity and acceleration as in the shipped mill3 and lathe.
 """
 from __future__ import annotations
 
@@ -18,7 +15,7 @@ import pytest
 from hypothesis import HealthCheck, Phase, given, settings
 
 from cnc_msgs_py.job import load_job_file, parse_job
-from cnc_msgs_py.machine import Machine, Tolerance, exactly_as_described, load_machine
+from cnc_msgs_py.machine import Machine, Tolerance, load_machine
 from cnc_msgs_py.schema import JobError
 from cnc_planner.planning import INTERNAL, plan_job
 from cnc_planner.motion import SERVO_PERIOD
@@ -58,7 +55,7 @@ def test_every_job_is_refused_with_a_reason_or_verified_on_any_machine(kind):
               suppress_health_check=[HealthCheck.too_slow])
     @given(machines(base))
     def run(machine: Machine) -> None:
-        outcomes.append(refused_or_verified(kind, exactly_as_described(machine) if kind == "path" else machine))
+        outcomes.append(refused_or_verified(kind, machine))
 
     run()
     # Low jerk limits refuse the thread's vibration at 600 rpm (naming the rpm that would

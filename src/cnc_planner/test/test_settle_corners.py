@@ -47,9 +47,7 @@ def test_after_the_settle_every_tolerated_drive_holds_the_tip_within_tol(x):
     settle = settle_time(builder, Kinematics(MILL), t0, TOL, PERIOD)
     joints = ["x", "y", "z"]
     t = np.arange(int(np.ceil((t0 + 2.0) / PERIOD)) + 1) * PERIOD
-    p = np.stack([builder.timelines[j].sample(t)[0] for j in joints], axis=1)
-    v = np.stack([builder.timelines[j].sample(t)[1] for j in joints], axis=1)
-    a = np.stack([builder.timelines[j].sample(t)[2] for j in joints], axis=1)
+    p, v, a = (np.stack(q, axis=1) for q in zip(*[builder.timelines[j].sample(t) for j in joints]))
     last = []
     for plant in corner_plants(MILL, joints):
         feedback, _ = DriveModel(MILL, PERIOD, tuple(joints), drives={**MILL.drives, **plant}).simulate(p, v, a)
